@@ -1,0 +1,244 @@
+"""The tabulated rigid constraint y_C^k(x): the form the integrator reads.
+
+The exact constraint of MODEL.md §2 is a maximisation per wheel position and
+too costly to solve at every right-hand-side evaluation, so it is solved once
+per passage on a grid of wheel positions (``sim_core.constraint``) and stored
+here as a piecewise cubic Hermite table: exact values and slopes at the nodes,
+C¹ inside each piece, and explicit *kinks* (nodes whose left and right slopes
+differ: the contact point jumped, e.g. the wheel rolled onto a flat's corner
+or bridged a hollow). The integrator stops exactly at every kink and restarts
+there (MODEL.md §7).
+
+A table may be *periodic* (a round wheel on a cosine rail, any wheel on a
+flat rail): it then covers one period [x[0], x[0] + period] and positions wrap.
+Outside a non-periodic table the constraint is continued flat at the end
+values.
+
+Worked example: a table of y = 0.1·x² on three nodes returns the exact
+parabola inside, because cubic Hermite interpolation is exact for it:
+
+    >>> import numpy as np
+    >>> x = np.array([0.0, 1.0, 2.0])
+    >>> t = ConstraintTable(x=x, y=0.1 * x**2, slope_left=0.2 * x, slope_right=0.2 * x,
+    ...                     contact_x=x, kinks=np.empty(0), period=0.0, resolution=1.0)
+    >>> round(float(t.evaluate(np.array([1.5]))[0]), 12)
+    0.225
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+
+@dataclass(frozen=True)
+class ConstraintTable:
+    """y_C^k on nodes ``x`` (strictly increasing), with slopes and contact points.
+
+    Attributes:
+        x: node positions of the wheel centre x_C (m), strictly increasing.
+        y: y_C^k at the nodes (m), relative to a round wheel on a flat rail at 0.
+        slope_left, slope_right: dy_C^k/dx_C just left and right of each node;
+            they differ only at kinks.
+        contact_x: the contact point x_D at each node (m).
+        kinks: positions (a subset of ``x``) where the slope jumps.
+        period: 0 for a table over a finite stretch; else the table covers
+            exactly one period [x[0], x[0] + period] and ``y[-1] == y[0]``.
+        resolution: the length of the finest feature in the inputs (rail
+            sampling, wavelength/16, ...): steps in contact advance the wheel
+            by at most this much so no feature is stepped over.
+    """
+
+    x: NDArray[np.float64]
+    y: NDArray[np.float64]
+    slope_left: NDArray[np.float64]
+    slope_right: NDArray[np.float64]
+    contact_x: NDArray[np.float64]
+    kinks: NDArray[np.float64]
+    period: float
+    resolution: float
+    meta: dict[str, float] = field(default_factory=dict, compare=False)
+
+    def __post_init__(self) -> None:
+        n = self.x.size
+        if n < 2:
+            raise ValueError(f"a constraint table needs at least 2 nodes, got {n}")
+        for name in ("y", "slope_left", "slope_right", "contact_x"):
+            arr = getattr(self, name)
+            if arr.shape != (n,):
+                raise ValueError(f"constraint table: {name} has shape {arr.shape}, expected ({n},)")
+            if not np.all(np.isfinite(arr)):
+                raise ValueError(f"constraint table: {name} has non-finite values")
+        if not np.all(np.diff(self.x) > 0):
+            raise ValueError("constraint table: node positions x must be strictly increasing")
+        if self.period < 0 or (self.period > 0 and abs(self.x[-1] - self.x[0] - self.period) > 1e-12 * max(1.0, self.period)):
+            raise ValueError("constraint table: a periodic table must span exactly one period")
+        if not self.resolution > 0:
+            raise ValueError(f"constraint table: resolution must be positive, got {self.resolution}")
+
+    def evaluate(self, xq: NDArray[np.float64]) -> NDArray[np.float64]:
+        """y_C^k at the positions ``xq`` (vectorised)."""
+        xq = np.asarray(xq, dtype=np.float64)
+        out = np.empty(xq.shape)
+        evaluate_many(self.x, self.y, self.slope_left, self.slope_right, self.period, xq.ravel(), out.ravel())
+        return out
+
+    def slope(self, xq: NDArray[np.float64]) -> NDArray[np.float64]:
+        """dy_C^k/dx at ``xq`` (right-sided at kinks)."""
+        xq = np.asarray(xq, dtype=np.float64)
+        out = np.empty(xq.shape)
+        slope_many(self.x, self.y, self.slope_left, self.slope_right, self.period, xq.ravel(), out.ravel())
+        return out
+
+    def contact_point(self, xq: NDArray[np.float64]) -> NDArray[np.float64]:
+        """The contact point x_D for wheel positions ``xq`` (nearest node, unwrapped)."""
+        xq = np.asarray(xq, dtype=np.float64)
+        out = np.empty(xq.shape)
+        contact_many(self.x, self.contact_x, self.period, xq.ravel(), out.ravel())
+        return out
+
+    def kinks_between(self, x0: float, x1: float) -> NDArray[np.float64]:
+        """Kink positions in (x0, x1], unwrapped for a periodic table, sorted."""
+        if self.kinks.size == 0 or x1 <= x0:
+            return np.empty(0)
+        if self.period == 0.0:
+            k = self.kinks
+            return np.sort(k[(k > x0) & (k <= x1)])
+        p = self.period
+        n0 = int(np.floor((x0 - self.x[0]) / p)) - 1
+        n1 = int(np.floor((x1 - self.x[0]) / p)) + 1
+        allk = (self.kinks[None, :] + p * np.arange(n0, n1 + 1)[:, None]).ravel()
+        return np.unique(allk[(allk > x0) & (allk <= x1)])
+
+
+@numba.njit(cache=True, inline="always")
+def wrap(xv: float, x0: float, period: float) -> tuple[float, float]:
+    """(position inside the table, shift added) for a periodic table."""
+    if period <= 0.0:
+        return xv, 0.0
+    n = np.floor((xv - x0) / period)
+    shift = n * period
+    return xv - shift, shift
+
+
+@numba.njit(cache=True, inline="always")
+def locate(x: NDArray[np.float64], xv: float, hint: int) -> int:
+    """Index i with x[i] <= xv < x[i+1] (clamped to [0, n-2]); starts at ``hint``."""
+    n = x.size
+    i = hint
+    if i < 0 or i > n - 2:
+        i = 0
+    if x[i] <= xv:
+        if i + 1 < n - 1 and xv >= x[i + 1]:
+            if i + 2 < n - 1 and xv >= x[i + 2]:
+                lo = i + 2
+                hi = n - 1
+                while hi - lo > 1:
+                    mid = (lo + hi) // 2
+                    if x[mid] <= xv:
+                        lo = mid
+                    else:
+                        hi = mid
+                return lo
+            return i + 1
+        return i
+    lo = 0
+    hi = i
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if x[mid] <= xv:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+@numba.njit(cache=True)
+def table_eval(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    sl: NDArray[np.float64],
+    sr: NDArray[np.float64],
+    period: float,
+    xv: float,
+    hint: int,
+) -> tuple[float, float, int]:
+    """(y_C^k, slope, index) at position ``xv``; ``hint`` speeds up nearby look-ups."""
+    xw, _ = wrap(xv, x[0], period)
+    n = x.size
+    if xw <= x[0]:
+        if period > 0.0:
+            return y[0], sr[0], 0
+        return y[0], 0.0, 0
+    if xw >= x[n - 1]:
+        if period > 0.0:
+            return y[n - 1], sl[n - 1], n - 2
+        return y[n - 1], 0.0, n - 2
+    i = locate(x, xw, hint)
+    h = x[i + 1] - x[i]
+    t = (xw - x[i]) / h
+    t2 = t * t
+    t3 = t2 * t
+    m0 = sr[i] * h
+    m1 = sl[i + 1] * h
+    val = (2 * t3 - 3 * t2 + 1) * y[i] + (t3 - 2 * t2 + t) * m0 + (-2 * t3 + 3 * t2) * y[i + 1] + (t3 - t2) * m1
+    der = ((6 * t2 - 6 * t) * y[i] + (3 * t2 - 4 * t + 1) * m0 + (-6 * t2 + 6 * t) * y[i + 1] + (3 * t2 - 2 * t) * m1) / h
+    return val, der, i
+
+
+@numba.njit(cache=True)
+def evaluate_many(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    sl: NDArray[np.float64],
+    sr: NDArray[np.float64],
+    period: float,
+    xq: NDArray[np.float64],
+    out: NDArray[np.float64],
+) -> None:
+    hint = 0
+    for k in range(xq.size):
+        v, _, hint = table_eval(x, y, sl, sr, period, xq[k], hint)
+        out[k] = v
+
+
+@numba.njit(cache=True)
+def slope_many(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    sl: NDArray[np.float64],
+    sr: NDArray[np.float64],
+    period: float,
+    xq: NDArray[np.float64],
+    out: NDArray[np.float64],
+) -> None:
+    hint = 0
+    for k in range(xq.size):
+        _, d, hint = table_eval(x, y, sl, sr, period, xq[k], hint)
+        out[k] = d
+
+
+@numba.njit(cache=True)
+def contact_many(
+    x: NDArray[np.float64],
+    cx: NDArray[np.float64],
+    period: float,
+    xq: NDArray[np.float64],
+    out: NDArray[np.float64],
+) -> None:
+    hint = 0
+    n = x.size
+    for k in range(xq.size):
+        xw, shift = wrap(xq[k], x[0], period)
+        if xw <= x[0]:
+            out[k] = cx[0] + shift + (xw - x[0])
+            continue
+        if xw >= x[n - 1]:
+            out[k] = cx[n - 1] + shift + (xw - x[n - 1])
+            continue
+        hint = locate(x, xw, hint)
+        i = hint if (xw - x[hint]) <= (x[hint + 1] - xw) else hint + 1
+        out[k] = cx[i] + shift + (xw - x[i])
