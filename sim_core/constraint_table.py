@@ -50,6 +50,9 @@ class ConstraintTable:
         resolution: the length of the finest feature in the inputs (rail
             sampling, wavelength/16, ...): steps in contact advance the wheel
             by at most this much so no feature is stepped over.
+        stiffness_scale: empty, or per node the factor C(x)/C of the
+            curvature-dependent Hertz coefficient (MODEL.md §3, optional);
+            interpolated linearly between nodes.
     """
 
     x: NDArray[np.float64]
@@ -60,6 +63,7 @@ class ConstraintTable:
     kinks: NDArray[np.float64]
     period: float
     resolution: float
+    stiffness_scale: NDArray[np.float64] = field(default_factory=lambda: np.empty(0))
     meta: dict[str, float] = field(default_factory=dict, compare=False)
 
     def __post_init__(self) -> None:
@@ -76,6 +80,8 @@ class ConstraintTable:
             raise ValueError("constraint table: node positions x must be strictly increasing")
         if self.period < 0 or (self.period > 0 and abs(self.x[-1] - self.x[0] - self.period) > 1e-12 * max(1.0, self.period)):
             raise ValueError("constraint table: a periodic table must span exactly one period")
+        if self.stiffness_scale.size not in (0, n) or not np.all(self.stiffness_scale > 0):
+            raise ValueError("constraint table: stiffness_scale must be empty or positive per node")
         if not self.resolution > 0:
             raise ValueError(f"constraint table: resolution must be positive, got {self.resolution}")
 
