@@ -31,7 +31,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from sim_core.contact_laws import ContactModel
+from sim_core import integrator as integ
+from sim_core.constraint_table import ConstraintTable
+from sim_core.contact_laws import ContactLaw, ContactModel
+
+YIELD_HYSTERESIS = 1e-14
+"""Width (m) of the elastic/plastic switch's hysteresis (MODEL.md §5)."""
 
 TRANSITION_KINDS = ("loss", "contact", "yield", "unyield")
 """Names of the transition codes 0..3 the integrator reports."""
@@ -154,3 +159,167 @@ class PassageOutput:
     min_force: float
     max_indentation: float
     time_out_of_contact: float
+
+
+def static_indentation(contact: ContactModel, load: float, scale: float = 1.0) -> float:
+    """The indentation at which the loading branch carries ``load`` (F(δ) = P).
+
+    Raises ValueError if the law cannot carry it (Hertzian–perfectly plastic with P >= F_Y).
+    """
+    c = contact.coefficient * scale
+    d_hertz = (load / c) ** (2.0 / 3.0)
+    if not contact.law.is_plastic or d_hertz <= contact.yield_indentation:
+        return d_hertz
+    if contact.law == ContactLaw.HERTZ_PLASTIC:
+        raise ValueError(
+            f"the load {load:g} N exceeds the yield force {contact.yield_force:g} N: "
+            "a Hertzian-perfectly plastic contact has no static equilibrium"
+        )
+    lo, hi = contact.yield_indentation, contact.yield_indentation
+    while float(contact.force(hi)[0]) < load:
+        hi *= 2.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if float(contact.force(mid)[0]) < load:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+def _second_derivative_bound(table: ConstraintTable) -> float:
+    """max |y_C^k''| of the Hermite table (attained at piece ends, as it is linear per piece)."""
+    h = np.diff(table.x)
+    dy = np.diff(table.y)
+    m0 = table.slope_right[:-1]
+    m1 = table.slope_left[1:]
+    c0 = 6.0 * dy / h**2 - (4.0 * m0 + 2.0 * m1) / h
+    c1 = -6.0 * dy / h**2 + (2.0 * m0 + 4.0 * m1) / h
+    return float(max(np.max(np.abs(c0)), np.max(np.abs(c1))))
+
+
+class IntegrationError(RuntimeError):
+    """The integrator could not finish the passage (step too small, too many steps)."""
+
+
+def simulate_passage(
+    table: ConstraintTable,
+    spec: PassageSpec,
+    *,
+    track_dents: bool | None = None,
+    dent_spacing: float | None = None,
+    max_steps: int = 50_000_000,
+) -> PassageOutput:
+    """Simulate one wheel passage over the tabulated constraint ``table``.
+
+    The wheel centre moves at x_C = V·t for t in [t0, t0 + duration]; samples
+    are taken at t0 + i/sample_rate. Transitions (loss/return of contact,
+    yield/unyield) are located exactly; peak force and extreme indentations are
+    taken from the continuous solution, not from the samples.
+
+    ``track_dents`` (default: on for the Hertzian–perfectly plastic law)
+    records the largest indentation at each contact point while plastic, every
+    ``dent_spacing`` metres of wheel travel (default: 1/4 of the table's
+    resolution, at most 0.05 mm).
+    """
+    law = spec.contact.law
+    if track_dents is None:
+        track_dents = law == ContactLaw.HERTZ_PLASTIC
+    if dent_spacing is None:
+        dent_spacing = min(table.resolution / 4.0, 5e-5)
+    v = spec.speed
+    t0 = spec.t0
+    t1 = t0 + spec.duration
+    compliant = spec.foundation.is_compliant
+    scale0 = 1.0
+    if table.stiffness_scale.size:
+        scale0 = float(np.interp(v * t0, table.x, table.stiffness_scale))
+    d0 = static_indentation(spec.contact, spec.load, scale0)
+    k_lin = 1.5 * spec.contact.coefficient * scale0 * math.sqrt(d0)
+    omega0 = math.sqrt(k_lin / spec.mass)
+    ck0 = float(table.evaluate(np.array([v * t0]))[0])
+    ym0 = -spec.load / spec.foundation.stiffness if compliant else 0.0
+    init = spec.initial or InitialState()
+    y0 = np.array(
+        [ck0 + ym0 - d0 + init.y_c, init.v_c, (ym0 + init.y_m) if compliant else 0.0, init.v_m if compliant else 0.0]
+    )
+    if not compliant and (init.y_m != 0.0 or init.v_m != 0.0):
+        raise ValueError("initial y_m/v_m given for a rigid foundation")
+    par = np.zeros(integ.N_PARAMS)
+    par[integ.P_LAW] = float(int(law))
+    par[integ.P_C] = spec.contact.coefficient
+    par[integ.P_FY] = spec.contact.yield_force
+    par[integ.P_DY] = spec.contact.yield_indentation
+    par[integ.P_THETA] = spec.contact.johnson_coefficient
+    par[integ.P_MASS] = spec.mass
+    par[integ.P_LOAD] = spec.load
+    par[integ.P_FMASS] = spec.foundation.mass if compliant else 1.0
+    par[integ.P_FSTIFF] = spec.foundation.stiffness if compliant else 0.0
+    par[integ.P_FDAMP] = spec.foundation.damping if compliant else 0.0
+    par[integ.P_SPEED] = v
+    par[integ.P_COMPLIANT] = 1.0 if compliant else 0.0
+    par[integ.P_HYST] = YIELD_HYSTERESIS
+    par[integ.P_RTOL] = spec.rtol
+    par[integ.P_ATOL_Y] = spec.rtol * d0
+    par[integ.P_ATOL_V] = spec.rtol * d0 * omega0
+    par[integ.P_HMAX_CONTACT] = table.resolution / v
+    par[integ.P_C2MAX] = _second_derivative_bound(table)
+    par[integ.P_DENT_DX] = dent_spacing
+    par[integ.P_TRACK_DENTS] = 1.0 if track_dents else 0.0
+    n_samples = int(math.floor(spec.duration * spec.sample_rate * (1 + 1e-12))) + 1
+    sample_t = t0 + np.arange(n_samples) / spec.sample_rate
+    kinks = table.kinks_between(v * t0 - 1e-12, v * t1 + table.resolution)
+    status, samples, tr_t, tr_k, extrema, dents, stats, _ = integ.integrate(
+        table.x,
+        table.y,
+        table.slope_left,
+        table.slope_right,
+        table.contact_x,
+        table.stiffness_scale,
+        float(table.period),
+        np.ascontiguousarray(kinks, dtype=np.float64),
+        par,
+        t0,
+        t1,
+        y0,
+        sample_t,
+        max_steps,
+    )
+    if status == integ.STEP_TOO_SMALL:
+        raise IntegrationError("the step size fell below 1e-15 s: the solution is not resolvable here")
+    if status == integ.TOO_MANY_STEPS:
+        raise IntegrationError(f"more than {max_steps} steps: raise max_steps or relax rtol")
+    s = samples
+    peak_delta, min_delta, t_flight = (float(e) for e in extrema)
+    transitions = tuple(
+        Transition(float(tt), TRANSITION_KINDS[int(kk)], float(tt * v)) for tt, kk in zip(tr_t, tr_k, strict=True)
+    )
+    ever_lost = any(tr.kind == "loss" for tr in transitions) or t_flight > 0.0
+    min_force = 0.0 if ever_lost else float(spec.contact.force(min_delta)[0])
+    if dents.shape[0] and law == ContactLaw.HERTZ_PLASTIC:
+        dent_x, dent_d = dents[:, 0], dents[:, 1]
+    else:
+        dent_x = np.empty(0)
+        dent_d = np.empty(0)
+    return PassageOutput(
+        t=s[:, integ.S_T],
+        x=s[:, integ.S_X],
+        y_c=s[:, integ.S_YC],
+        v_c=s[:, integ.S_VC],
+        y_ck=s[:, integ.S_YCK],
+        y_m=s[:, integ.S_YM],
+        v_m=s[:, integ.S_VM],
+        delta=s[:, integ.S_DELTA],
+        force=s[:, integ.S_FORCE],
+        in_contact=s[:, integ.S_CONTACT] > 0.5,
+        transitions=transitions,
+        delta_c_x=dent_x,
+        delta_c=dent_d,
+        steps=int(stats[0]),
+        rejected_steps=int(stats[1]),
+        rhs_evaluations=int(stats[2]),
+        peak_force=float(spec.contact.force(peak_delta)[0]) * scale0,
+        min_force=min_force,
+        max_indentation=peak_delta,
+        time_out_of_contact=t_flight,
+    )

@@ -1,0 +1,841 @@
+"""Compiled adaptive DOP853 integrator with located contact events.
+
+The state is (y_C, v_C, y_M, v_M); on a rigid foundation y_M ≡ v_M ≡ 0. The
+right-hand side is smooth inside each *mode* — flight (F = 0), elastic contact
+(Hertz), plastic contact (Johnson or the plateau F_Y) — and every switch
+between modes is an *event* located to ~1e-13 s on the step's interpolant and
+then reached by a fresh Runge–Kutta step that ends exactly on it, so no step
+ever straddles a change of law (MODEL.md §4, §7):
+
+- loss of contact: δ falls through 0 (elastic mode);
+- return of contact: δ rises through 0 (flight);
+- yield / unyield: δ crosses δ_Y (± a hysteresis of ~1e-14 m, MODEL.md §5).
+
+Kinks of the constraint y_C^k (contact-point jumps) are known in advance
+(``ConstraintTable.kinks``): steps in contact stop exactly on them.
+
+How crossings are found without stepping over them:
+
+- in contact the 12 stages of each step already evaluate δ; if any of them,
+  or the step's end, comes near a threshold, the step's interpolant is scanned
+  for a sign change;
+- in flight on a rigid foundation the wheel centre is a parabola (steps grow
+  to the end of the window, the error estimate being zero), so δ(t) is scanned
+  by interval bisection with a rigorous bound on δ'' (P/m + V²·max|y_C^k''|,
+  plus the foundation's acceleration): an interval is discarded only if its
+  end values and the bound prove δ < 0 inside it.
+
+Dense output is the quintic Hermite polynomial through the positions,
+velocities and accelerations at both step ends (exact for flight, O(h⁶) in
+contact), which DOP853 gives without extra stages.
+
+Worked example: ``sim_core.passage.simulate_passage`` wraps this; see there.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from sim_core import dop853
+from sim_core.constraint_table import locate, table_eval, wrap
+from sim_core.contact_laws import HERTZ, JOHNSON, johnson_plastic_force
+
+# Modes.
+FLIGHT = 0
+ELASTIC = 1
+PLASTIC = 2
+
+# Transition codes (sim_core.passage.TRANSITION_KINDS).
+EV_LOSS = 0
+EV_CONTACT = 1
+EV_YIELD = 2
+EV_UNYIELD = 3
+
+# Layout of the float parameter vector.
+P_LAW = 0
+P_C = 1
+P_FY = 2
+P_DY = 3
+P_THETA = 4
+P_MASS = 5
+P_LOAD = 6
+P_FMASS = 7
+P_FSTIFF = 8
+P_FDAMP = 9
+P_SPEED = 10
+P_COMPLIANT = 11
+P_HYST = 12
+P_RTOL = 13
+P_ATOL_Y = 14
+P_ATOL_V = 15
+P_HMAX_CONTACT = 16
+P_C2MAX = 17
+P_DENT_DX = 18
+P_TRACK_DENTS = 19
+N_PARAMS = 20
+
+# Status codes.
+OK = 0
+STEP_TOO_SMALL = 1
+TOO_MANY_STEPS = 2
+
+# Sample columns.
+S_T = 0
+S_X = 1
+S_YC = 2
+S_VC = 3
+S_YM = 4
+S_VM = 5
+S_YCK = 6
+S_DELTA = 7
+S_FORCE = 8
+S_CONTACT = 9
+N_COLS = 10
+
+SAFETY = 0.9
+MIN_FACTOR = 0.2
+MAX_FACTOR = 10.0
+
+_A = dop853.A
+_B = dop853.B
+_C = dop853.C
+_E3 = dop853.E3
+_E5 = dop853.E5
+
+
+@numba.njit(cache=True, inline="always")
+def _constraint(
+    tx: NDArray[np.float64],
+    ty: NDArray[np.float64],
+    tsl: NDArray[np.float64],
+    tsr: NDArray[np.float64],
+    tscale: NDArray[np.float64],
+    period: float,
+    xv: float,
+    hint: int,
+) -> tuple[float, float, float, int]:
+    """(y_C^k, slope, stiffness scale, index) at x."""
+    v, d, i = table_eval(tx, ty, tsl, tsr, period, xv, hint)
+    s = 1.0
+    if tscale.size > 0:
+        xw, _ = wrap(xv, tx[0], period)
+        if xw <= tx[0]:
+            s = tscale[0]
+        elif xw >= tx[tx.size - 1]:
+            s = tscale[tx.size - 1]
+        else:
+            u = (xw - tx[i]) / (tx[i + 1] - tx[i])
+            s = tscale[i] + u * (tscale[i + 1] - tscale[i])
+    return v, d, s, i
+
+
+@numba.njit(cache=True, inline="always")
+def _force(delta: float, mode: int, par: NDArray[np.float64], scale: float) -> float:
+    if mode == FLIGHT or delta <= 0.0:
+        return 0.0
+    if mode == ELASTIC:
+        return par[P_C] * scale * delta * math.sqrt(delta)
+    if int(par[P_LAW]) == JOHNSON:
+        return johnson_plastic_force(delta, par[P_FY], par[P_DY], par[P_THETA])
+    return par[P_FY]
+
+
+@numba.njit(cache=True)
+def _rhs(
+    t: float,
+    yc: float,
+    vc: float,
+    ym: float,
+    vm: float,
+    mode: int,
+    par: NDArray[np.float64],
+    tx: NDArray[np.float64],
+    ty: NDArray[np.float64],
+    tsl: NDArray[np.float64],
+    tsr: NDArray[np.float64],
+    tscale: NDArray[np.float64],
+    period: float,
+    hint: int,
+) -> tuple[float, float, float, int]:
+    """(a_C, a_M, δ, hint). In flight δ is not needed and returned as NaN."""
+    f = 0.0
+    delta = np.nan
+    if mode != FLIGHT:
+        ck, _, sc, hint = _constraint(tx, ty, tsl, tsr, tscale, period, par[P_SPEED] * t, hint)
+        delta = -yc + ck + ym
+        f = _force(delta, mode, par, sc)
+    ac = (-par[P_LOAD] + f) / par[P_MASS]
+    am = 0.0
+    if par[P_COMPLIANT] > 0.0:
+        am = (-f - par[P_FSTIFF] * ym - par[P_FDAMP] * vm) / par[P_FMASS]
+    return ac, am, delta, hint
+
+
+@numba.njit(cache=True, inline="always")
+def _hermite5(
+    s: float, h: float, y0: float, v0: float, a0: float, y1: float, v1: float, a1: float
+) -> tuple[float, float]:
+    """Quintic Hermite position and velocity at fraction s of a step of length h."""
+    s2 = s * s
+    s3 = s2 * s
+    s4 = s3 * s
+    s5 = s4 * s
+    h0 = 1.0 - 10.0 * s3 + 15.0 * s4 - 6.0 * s5
+    h1 = s - 6.0 * s3 + 8.0 * s4 - 3.0 * s5
+    h2 = 0.5 * (s2 - 3.0 * s3 + 3.0 * s4 - s5)
+    h3 = 10.0 * s3 - 15.0 * s4 + 6.0 * s5
+    h4 = -4.0 * s3 + 7.0 * s4 - 3.0 * s5
+    h5 = 0.5 * (s3 - 2.0 * s4 + s5)
+    pos = h0 * y0 + h1 * h * v0 + h2 * h * h * a0 + h3 * y1 + h4 * h * v1 + h5 * h * h * a1
+    d0 = -30.0 * s2 + 60.0 * s3 - 30.0 * s4
+    d1 = 1.0 - 18.0 * s2 + 32.0 * s3 - 15.0 * s4
+    d2 = 0.5 * (2.0 * s - 9.0 * s2 + 12.0 * s3 - 5.0 * s4)
+    d3 = 30.0 * s2 - 60.0 * s3 + 30.0 * s4
+    d4 = -12.0 * s2 + 28.0 * s3 - 15.0 * s4
+    d5 = 0.5 * (3.0 * s2 - 8.0 * s3 + 5.0 * s4)
+    vel = (d0 * y0 + d1 * h * v0 + d2 * h * h * a0 + d3 * y1 + d4 * h * v1 + d5 * h * h * a1) / h
+    return pos, vel
+
+
+@numba.njit(cache=True)
+def _dense(
+    s: float,
+    h: float,
+    y0: NDArray[np.float64],
+    a0c: float,
+    a0m: float,
+    y1: NDArray[np.float64],
+    a1c: float,
+    a1m: float,
+) -> tuple[float, float, float, float]:
+    """(y_C, v_C, y_M, v_M) at fraction s of the step."""
+    yc, vc = _hermite5(s, h, y0[0], y0[1], a0c, y1[0], y1[1], a1c)
+    ym = 0.0
+    vm = 0.0
+    if y0[2] != 0.0 or y1[2] != 0.0 or y0[3] != 0.0 or y1[3] != 0.0 or a0m != 0.0 or a1m != 0.0:
+        ym, vm = _hermite5(s, h, y0[2], y0[3], a0m, y1[2], y1[3], a1m)
+    return yc, vc, ym, vm
+
+
+@numba.njit(cache=True)
+def _gval(
+    s: float,
+    kind: int,
+    t: float,
+    h: float,
+    y0: NDArray[np.float64],
+    a0c: float,
+    a0m: float,
+    y1: NDArray[np.float64],
+    a1c: float,
+    a1m: float,
+    par: NDArray[np.float64],
+    tx: NDArray[np.float64],
+    ty: NDArray[np.float64],
+    tsl: NDArray[np.float64],
+    tsr: NDArray[np.float64],
+    period: float,
+) -> float:
+    """Event function at fraction s: signed so that the event is g going from <= 0 to > 0.
+
+    kind: 0 contact (g = δ), 1 loss (g = -δ), 2 yield (g = δ - δ_Y - hyst),
+    3 unyield (g = δ_Y - hyst - δ).
+    """
+    yc, _, ym, _ = _dense(s, h, y0, a0c, a0m, y1, a1c, a1m)
+    ck, _, _ = table_eval(tx, ty, tsl, tsr, period, par[P_SPEED] * (t + s * h), 0)
+    d = -yc + ck + ym
+    if kind == 0:
+        return d
+    if kind == 1:
+        return -d
+    if kind == 2:
+        return d - par[P_DY] - par[P_HYST]
+    return par[P_DY] - par[P_HYST] - d
+
+
+@numba.njit(cache=True)
+def _delta_rate(
+    s: float,
+    t: float,
+    h: float,
+    y0: NDArray[np.float64],
+    a0c: float,
+    a0m: float,
+    y1: NDArray[np.float64],
+    a1c: float,
+    a1m: float,
+    par: NDArray[np.float64],
+    tx: NDArray[np.float64],
+    ty: NDArray[np.float64],
+    tsl: NDArray[np.float64],
+    tsr: NDArray[np.float64],
+    period: float,
+) -> tuple[float, float]:
+    """(δ, dδ/dt) at fraction s of the step."""
+    yc, vc, ym, vm = _dense(s, h, y0, a0c, a0m, y1, a1c, a1m)
+    ck, dck, _ = table_eval(tx, ty, tsl, tsr, period, par[P_SPEED] * (t + s * h), 0)
+    return -yc + ck + ym, -vc + par[P_SPEED] * dck + vm
+
+
+@numba.njit(cache=True)
+def _root(
+    sa: float,
+    ga: float,
+    sb: float,
+    gb: float,
+    kind: int,
+    t: float,
+    h: float,
+    y0: NDArray[np.float64],
+    a0c: float,
+    a0m: float,
+    y1: NDArray[np.float64],
+    a1c: float,
+    a1m: float,
+    par: NDArray[np.float64],
+    tx: NDArray[np.float64],
+    ty: NDArray[np.float64],
+    tsl: NDArray[np.float64],
+    tsr: NDArray[np.float64],
+    period: float,
+) -> float:
+    """Illinois regula falsi for the first g > 0 in (sa, sb] with g(sa) <= 0 < g(sb)."""
+    side = 0
+    tol = 1e-14 / h if h > 0 else 1e-14
+    for _ in range(200):
+        if sb - sa <= tol:
+            break
+        if gb != ga:
+            sm = (sa * gb - sb * ga) / (gb - ga)
+        else:
+            sm = 0.5 * (sa + sb)
+        if not (sa < sm < sb):
+            sm = 0.5 * (sa + sb)
+        gm = _gval(sm, kind, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
+        if gm > 0.0:
+            sb = sm
+            gb = gm
+            if side == -1:
+                ga *= 0.5
+            side = -1
+        else:
+            sa = sm
+            ga = gm
+            if side == 1:
+                gb *= 0.5
+            side = 1
+    return sb
+
+
+@numba.njit(cache=True)
+def _first_crossing_scan(
+    kind: int,
+    t: float,
+    h: float,
+    y0: NDArray[np.float64],
+    a0c: float,
+    a0m: float,
+    y1: NDArray[np.float64],
+    a1c: float,
+    a1m: float,
+    par: NDArray[np.float64],
+    tx: NDArray[np.float64],
+    ty: NDArray[np.float64],
+    tsl: NDArray[np.float64],
+    tsr: NDArray[np.float64],
+    period: float,
+    n_points: int,
+) -> float:
+    """Scan g at n_points+1 equal fractions (and the RK nodes); return the root or -1."""
+    ga = _gval(0.0, kind, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
+    if ga > 0.0:
+        # Starting on the wrong side by round-off: treat the start as g = 0.
+        ga = 0.0
+    sa = 0.0
+    for j in range(1, n_points + 1):
+        sb = j / n_points
+        gb = _gval(sb, kind, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
+        if gb > 0.0:
+            return _root(sa, ga, sb, gb, kind, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
+        sa = sb
+        ga = gb
+    return -1.0
+
+
+@numba.njit(cache=True)
+def _flight_scan(
+    t: float,
+    h: float,
+    y0: NDArray[np.float64],
+    a0c: float,
+    a0m: float,
+    y1: NDArray[np.float64],
+    a1c: float,
+    a1m: float,
+    par: NDArray[np.float64],
+    tx: NDArray[np.float64],
+    ty: NDArray[np.float64],
+    tsl: NDArray[np.float64],
+    tsr: NDArray[np.float64],
+    period: float,
+    kinks: NDArray[np.float64],
+    stack_s: NDArray[np.float64],
+    stack_g: NDArray[np.float64],
+) -> float:
+    """First return of contact in the step (fraction), or -1: bound-based bisection.
+
+    On [sa, sb] with g = δ <= 0 at both ends and |δ''| <= D2, δ <= max(ga, gb) + D2·(Δt)²/8.
+    Kinks of the constraint break the bound on δ'' and are inserted as split points.
+    """
+    v = par[P_SPEED]
+    d2 = par[P_LOAD] / par[P_MASS] + v * v * par[P_C2MAX]
+    if par[P_COMPLIANT] > 0.0:
+        d2 += 2.0 * max(abs(a0m), abs(a1m)) + 1e-12
+    # initial split points: 0, kinks inside, 1
+    n = 0
+    x0 = v * t
+    x1 = v * (t + h)
+    # push in reverse order so the leftmost interval is popped first
+    # collect kink fractions
+    nk = 0
+    if kinks.size > 0:
+        lo = np.searchsorted(kinks, x0, side="right")
+        hi = np.searchsorted(kinks, x1, side="left")
+        nk = hi - lo
+    else:
+        lo = 0
+    g1 = _gval(1.0, 0, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
+    stack_s[n] = 1.0
+    stack_g[n] = g1
+    n += 1
+    for j in range(nk - 1, -1, -1):
+        sk = (kinks[lo + j] / v - t) / h
+        if 0.0 < sk < 1.0:
+            stack_s[n] = sk
+            stack_g[n] = _gval(sk, 0, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
+            n += 1
+    sa = 0.0
+    ga = _gval(0.0, 0, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
+    if ga > 0.0:
+        ga = 0.0
+    min_ds = 1e-13 / h
+    while n > 0:
+        sb = stack_s[n - 1]
+        gb = stack_g[n - 1]
+        if gb > 0.0:
+            return _root(sa, ga, sb, gb, 0, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
+        dt = (sb - sa) * h
+        bound = max(ga, gb) + d2 * dt * dt / 8.0
+        if bound < 0.0 or (sb - sa) < min_ds or n >= stack_s.size - 1:
+            # proven free of contact (or unresolvably small): move on
+            sa = sb
+            ga = gb
+            n -= 1
+            continue
+        sm = 0.5 * (sa + sb)
+        stack_s[n] = sm
+        stack_g[n] = _gval(sm, 0, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
+        n += 1
+    return -1.0
+
+
+@numba.njit(cache=True)
+def _rk_step(
+    t: float,
+    y: NDArray[np.float64],
+    h: float,
+    mode: int,
+    K: NDArray[np.float64],
+    ynew: NDArray[np.float64],
+    dstage: NDArray[np.float64],
+    par: NDArray[np.float64],
+    tx: NDArray[np.float64],
+    ty: NDArray[np.float64],
+    tsl: NDArray[np.float64],
+    tsr: NDArray[np.float64],
+    tscale: NDArray[np.float64],
+    period: float,
+    hint: int,
+) -> tuple[float, int]:
+    """One DOP853 step from (t, y) with K[0] = f(t, y); fills K[1..12], ynew; returns (error norm, hint).
+
+    K rows hold (v_C, a_C, v_M, a_M); dstage[i] is δ at stage i (NaN in flight).
+    """
+    tmp = np.empty(4)
+    for s in range(1, 12):
+        for j in range(4):
+            acc = 0.0
+            for q in range(s):
+                acc += _A[s, q] * K[q, j]
+            tmp[j] = y[j] + h * acc
+        ac, am, d, hint = _rhs(t + _C[s] * h, tmp[0], tmp[1], tmp[2], tmp[3], mode, par, tx, ty, tsl, tsr, tscale, period, hint)
+        K[s, 0] = tmp[1]
+        K[s, 1] = ac
+        K[s, 2] = tmp[3]
+        K[s, 3] = am
+        dstage[s] = d
+    for j in range(4):
+        acc = 0.0
+        for q in range(12):
+            acc += _B[q] * K[q, j]
+        ynew[j] = y[j] + h * acc
+    ac, am, d, hint = _rhs(t + h, ynew[0], ynew[1], ynew[2], ynew[3], mode, par, tx, ty, tsl, tsr, tscale, period, hint)
+    K[12, 0] = ynew[1]
+    K[12, 1] = ac
+    K[12, 2] = ynew[3]
+    K[12, 3] = am
+    dstage[12] = d
+    # DOP853 error norm (as in Hairer's code and SciPy)
+    err5 = 0.0
+    err3 = 0.0
+    nc = 4 if par[P_COMPLIANT] > 0.0 else 2
+    for j in range(nc):
+        atol = par[P_ATOL_Y] if j % 2 == 0 else par[P_ATOL_V]
+        sc = atol + par[P_RTOL] * max(abs(y[j]), abs(ynew[j]))
+        e5 = 0.0
+        e3 = 0.0
+        for q in range(13):
+            e5 += _E5[q] * K[q, j]
+            e3 += _E3[q] * K[q, j]
+        e5 /= sc
+        e3 /= sc
+        err5 += e5 * e5
+        err3 += e3 * e3
+    if err5 == 0.0 and err3 == 0.0:
+        return 0.0, hint
+    denom = err5 + 0.01 * err3
+    return abs(h) * err5 / math.sqrt(denom * nc), hint
+
+
+@numba.njit(cache=True)
+def _mode_of(delta: float, par: NDArray[np.float64]) -> int:
+    if delta <= 0.0:
+        return FLIGHT
+    if int(par[P_LAW]) != HERTZ and delta > par[P_DY]:
+        return PLASTIC
+    return ELASTIC
+
+
+@numba.njit(cache=True)
+def integrate(
+    tx: NDArray[np.float64],
+    ty: NDArray[np.float64],
+    tsl: NDArray[np.float64],
+    tsr: NDArray[np.float64],
+    tcx: NDArray[np.float64],
+    tscale: NDArray[np.float64],
+    period: float,
+    kinks: NDArray[np.float64],
+    par: NDArray[np.float64],
+    t0: float,
+    t1: float,
+    y0: NDArray[np.float64],
+    sample_t: NDArray[np.float64],
+    max_steps: int,
+) -> tuple[
+    int,
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.int64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.int64],
+    NDArray[np.float64],
+]:
+    """Integrate one passage from t0 to t1.
+
+    Args:
+        tx..tscale, period: the constraint table (sim_core.constraint_table).
+        kinks: kink positions x (absolute, sorted) over the passage.
+        par: parameters (layout P_*).
+        y0: initial (y_C, v_C, y_M, v_M).
+        sample_t: increasing output times in [t0, t1].
+        max_steps: safety limit on accepted + rejected steps.
+
+    Returns:
+        (status, samples[n, N_COLS], transition times, transition codes,
+         extrema [peak δ, min δ in contact, time out of contact],
+         dent pairs [m, 2] (x_D, δ) recorded while plastic,
+         stats [steps, rejected, rhs evaluations], final state)
+    """
+    v = par[P_SPEED]
+    ns = sample_t.size
+    samples = np.zeros((ns, N_COLS))
+    cap_tr = 64
+    tr_t = np.empty(cap_tr)
+    tr_k = np.empty(cap_tr, dtype=np.int64)
+    n_tr = 0
+    cap_dent = 1024
+    dents = np.empty((cap_dent, 2))
+    n_dent = 0
+    track_dents = par[P_TRACK_DENTS] > 0.0
+    dent_dx = par[P_DENT_DX]
+    K = np.zeros((13, 4))
+    K1 = np.zeros((13, 4))
+    dstage = np.zeros(13)
+    stack_s = np.empty(128)
+    stack_g = np.empty(128)
+    y = y0.copy()
+    ynew = np.empty(4)
+    status = OK
+    hint = 0
+    t = t0
+    ck0, _, _, hint = _constraint(tx, ty, tsl, tsr, tscale, period, v * t, hint)
+    delta0 = -y[0] + ck0 + y[2]
+    mode = _mode_of(delta0, par)
+    ac, am, _, hint = _rhs(t, y[0], y[1], y[2], y[3], mode, par, tx, ty, tsl, tsr, tscale, period, hint)
+    K[0, 0] = y[1]
+    K[0, 1] = ac
+    K[0, 2] = y[3]
+    K[0, 3] = am
+    peak_delta = delta0
+    min_delta = delta0 if mode != FLIGHT else 0.0
+    t_flight = 0.0
+    nsteps = 0
+    nrej = 0
+    nrhs = 1
+    # first step guess: a fraction of the contact period
+    h = 1e-6
+    hmin_abs = 1e-15
+    # samples at t0
+    si = 0
+    while si < ns and sample_t[si] <= t0:
+        si += 1
+    for q in range(si):
+        samples[q, S_T] = sample_t[q]
+        samples[q, S_X] = v * sample_t[q]
+        samples[q, S_YC] = y[0]
+        samples[q, S_VC] = y[1]
+        samples[q, S_YM] = y[2]
+        samples[q, S_VM] = y[3]
+        samples[q, S_YCK] = ck0
+        samples[q, S_DELTA] = delta0
+        samples[q, S_FORCE] = _force(delta0, mode, par, 1.0) if mode != FLIGHT else 0.0
+        samples[q, S_CONTACT] = 1.0 if mode != FLIGHT else 0.0
+    kp = 0
+    while kp < kinks.size and kinks[kp] <= v * t + 1e-15:
+        kp += 1
+    while t < t1:
+        if nsteps + nrej >= max_steps:
+            status = TOO_MANY_STEPS
+            break
+        hmax = t1 - t
+        if mode != FLIGHT:
+            hmax = min(hmax, par[P_HMAX_CONTACT])
+        hit_kink = False
+        if mode != FLIGHT and kp < kinks.size:
+            tk = kinks[kp] / v
+            if tk - t <= hmax:
+                hmax = tk - t
+                hit_kink = True
+        if h >= hmax:
+            h = hmax
+        else:
+            hit_kink = False
+        if h < hmin_abs:
+            if hit_kink:
+                # already on the kink (to round-off): pass it
+                kp += 1
+                h = max(h, 1e-9)
+                continue
+            status = STEP_TOO_SMALL
+            break
+        # --- attempt steps until accepted
+        while True:
+            err, hint = _rk_step(t, y, h, mode, K, ynew, dstage, par, tx, ty, tsl, tsr, tscale, period, hint)
+            nrhs += 12
+            if err <= 1.0:
+                break
+            nrej += 1
+            factor = max(MIN_FACTOR, SAFETY * err ** (-1.0 / 8.0))
+            h *= factor
+            hit_kink = False
+            if h < hmin_abs:
+                status = STEP_TOO_SMALL
+                break
+        if status != OK:
+            break
+        nsteps += 1
+        if err == 0.0:
+            factor = MAX_FACTOR
+        else:
+            factor = min(MAX_FACTOR, SAFETY * err ** (-1.0 / 8.0))
+        a0c = K[0, 1]
+        a0m = K[0, 3]
+        a1c = K[12, 1]
+        a1m = K[12, 3]
+        # --- events
+        ev_s = -1.0
+        ev_kind = -1
+        if mode == FLIGHT:
+            ev_s = _flight_scan(t, h, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period, kinks, stack_s, stack_g)
+            if ev_s >= 0.0:
+                ev_kind = EV_CONTACT
+        else:
+            dmin = dstage[12]
+            dmax = dstage[12]
+            for q in range(1, 13):
+                dmin = min(dmin, dstage[q])
+                dmax = max(dmax, dstage[q])
+            if mode == ELASTIC:
+                if dmin < 0.25 * dmax or dmin <= 0.0:
+                    s_l = _first_crossing_scan(1, t, h, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period, 16)
+                    if s_l >= 0.0:
+                        ev_s = s_l
+                        ev_kind = EV_LOSS
+                if int(par[P_LAW]) != HERTZ and dmax > 0.9 * par[P_DY]:
+                    s_y = _first_crossing_scan(2, t, h, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period, 16)
+                    if s_y >= 0.0 and (ev_s < 0.0 or s_y < ev_s):
+                        ev_s = s_y
+                        ev_kind = EV_YIELD
+            else:
+                if dmin < 1.1 * par[P_DY]:
+                    s_u = _first_crossing_scan(3, t, h, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period, 16)
+                    if s_u >= 0.0:
+                        ev_s = s_u
+                        ev_kind = EV_UNYIELD
+        if ev_kind >= 0:
+            # grazing test: the rate of δ at the root must point the right way
+            _, rate = _delta_rate(ev_s, t, h, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period)
+            if (ev_kind == EV_LOSS and rate >= 0.0) or (ev_kind == EV_CONTACT and rate <= 0.0):
+                ev_kind = -1
+        hstep = h
+        if ev_kind >= 0:
+            hstep = ev_s * h
+            if hstep > hmin_abs:
+                # redo the step so that it ends exactly on the event
+                for q in range(4):
+                    K1[0, q] = K[0, q]
+                _, hint = _rk_step(t, y, hstep, mode, K1, ynew, dstage, par, tx, ty, tsl, tsr, tscale, period, hint)
+                nrhs += 12
+                for q in range(13):
+                    for j in range(4):
+                        K[q, j] = K1[q, j]
+                a1c = K[12, 1]
+                a1m = K[12, 3]
+            else:
+                hstep = 0.0
+                for q in range(4):
+                    ynew[q] = y[q]
+                a1c = a0c
+                a1m = a0m
+            hit_kink = False
+        tn = t + hstep
+        if hit_kink:
+            tn = kinks[kp] / v
+        # --- dense output: samples, extrema, dents
+        while si < ns and sample_t[si] <= tn:
+            ts = sample_t[si]
+            s = (ts - t) / hstep if hstep > 0.0 else 1.0
+            yc, vc, ym, vm = _dense(s, hstep, y, a0c, a0m, ynew, a1c, a1m)
+            ck, _, sc, hint = _constraint(tx, ty, tsl, tsr, tscale, period, v * ts, hint)
+            d = -yc + ck + ym
+            samples[si, S_T] = ts
+            samples[si, S_X] = v * ts
+            samples[si, S_YC] = yc
+            samples[si, S_VC] = vc
+            samples[si, S_YM] = ym
+            samples[si, S_VM] = vm
+            samples[si, S_YCK] = ck
+            samples[si, S_DELTA] = d
+            samples[si, S_FORCE] = _force(d, mode, par, sc)
+            samples[si, S_CONTACT] = 1.0 if mode != FLIGHT else 0.0
+            si += 1
+        if mode == FLIGHT:
+            t_flight += hstep
+        elif hstep > 0.0:
+            d_a, r_a = _delta_rate(0.0, t, hstep, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period)
+            d_b, r_b = _delta_rate(1.0, t, hstep, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period)
+            peak_delta = max(peak_delta, d_a, d_b)
+            min_delta = min(min_delta, d_a, d_b)
+            if (r_a > 0.0 and r_b < 0.0) or (r_a < 0.0 and r_b > 0.0):
+                # a local extremum of δ inside: bisect on dδ/dt
+                sa = 0.0
+                sb = 1.0
+                ra = r_a
+                for _ in range(60):
+                    sm = 0.5 * (sa + sb)
+                    _, rm = _delta_rate(sm, t, hstep, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period)
+                    if (rm > 0.0) == (ra > 0.0):
+                        sa = sm
+                        ra = rm
+                    else:
+                        sb = sm
+                    if (sb - sa) * hstep < 1e-13:
+                        break
+                d_m, _ = _delta_rate(0.5 * (sa + sb), t, hstep, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period)
+                peak_delta = max(peak_delta, d_m)
+                min_delta = min(min_delta, d_m)
+            if mode == PLASTIC and track_dents:
+                npts = int(math.ceil(v * hstep / dent_dx)) + 1
+                if n_dent + npts + 1 >= cap_dent:
+                    cap_dent = 2 * (n_dent + npts + 1)
+                    nd = np.empty((cap_dent, 2))
+                    nd[:n_dent] = dents[:n_dent]
+                    dents = nd
+                for q in range(npts + 1):
+                    s = q / npts
+                    d_q, _ = _delta_rate(s, t, hstep, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period)
+                    xq = v * (t + s * hstep)
+                    xw, shift = wrap(xq, tx[0], period)
+                    j = locate(tx, xw, hint)
+                    if xw <= tx[0]:
+                        xd = tcx[0] + (xw - tx[0])
+                    elif xw >= tx[tx.size - 1]:
+                        xd = tcx[tx.size - 1] + (xw - tx[tx.size - 1])
+                    else:
+                        u = (xw - tx[j]) / (tx[j + 1] - tx[j])
+                        xd = tcx[j] + u * (tcx[j + 1] - tcx[j])
+                    dents[n_dent, 0] = xd + shift
+                    dents[n_dent, 1] = d_q
+                    n_dent += 1
+        # --- advance
+        t = tn
+        for q in range(4):
+            y[q] = ynew[q]
+        if hit_kink:
+            kp += 1
+        while kp < kinks.size and kinks[kp] <= v * t + 1e-15:
+            kp += 1
+        if ev_kind >= 0:
+            if n_tr >= cap_tr:
+                cap_tr *= 2
+                nt = np.empty(cap_tr)
+                nk = np.empty(cap_tr, dtype=np.int64)
+                nt[:n_tr] = tr_t[:n_tr]
+                nk[:n_tr] = tr_k[:n_tr]
+                tr_t = nt
+                tr_k = nk
+            tr_t[n_tr] = t
+            tr_k[n_tr] = ev_kind
+            n_tr += 1
+            if ev_kind == EV_LOSS:
+                mode = FLIGHT
+                min_delta = min(min_delta, 0.0)
+            elif ev_kind == EV_CONTACT:
+                mode = ELASTIC
+            elif ev_kind == EV_YIELD:
+                mode = PLASTIC
+            else:
+                mode = ELASTIC
+            ac, am, _, hint = _rhs(t, y[0], y[1], y[2], y[3], mode, par, tx, ty, tsl, tsr, tscale, period, hint)
+            nrhs += 1
+            K[0, 0] = y[1]
+            K[0, 1] = ac
+            K[0, 2] = y[3]
+            K[0, 3] = am
+            if ev_kind == EV_CONTACT:
+                h = min(h, 1e-6)
+            else:
+                h = max(h, 1e-9)
+        else:
+            for q in range(4):
+                K[0, q] = K[12, q]
+            h = h * factor
+    stats = np.array([nsteps, nrej, nrhs], dtype=np.int64)
+    extrema = np.array([peak_delta, min_delta, t_flight])
+    return status, samples, tr_t[:n_tr].copy(), tr_k[:n_tr].copy(), extrema, dents[:n_dent].copy(), stats, y
