@@ -1,0 +1,82 @@
+"""railtwin's JSON contract: pydantic v2 models of every file and message.
+
+The models are the source of truth (CONTRACT.md fixes the field names; the
+models may add fields, never rename or drop them). Every model rejects unknown
+fields, NaN and infinities, and does not coerce strings to numbers.
+
+``all_json_schemas()`` gives the JSON Schema of every top-level model, by name;
+``railtwin schema`` prints them. Other modules add their top-level models to
+``MODELS`` (the service will add SiteConfig, WheelPassage, PassageResult,
+ServiceError).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from pydantic import BaseModel
+
+from schemas._base import SCHEMA_VERSION, StrictModel
+from schemas.errors import ErrorReport, FieldError
+from schemas.result import Derived, RailSamples, Result, RunStats, Series, Summary, Transition
+from schemas.scenario import (
+    MAX_SAMPLES,
+    CompliantFoundation,
+    CosineRail,
+    FlatOutline,
+    FlatRail,
+    InitialState,
+    Material,
+    RigidFoundation,
+    RoundedFlatOutline,
+    RoundOutline,
+    SampledOutline,
+    SampledRail,
+    Scenario,
+    StepRail,
+    Wheel,
+)
+
+MODELS: dict[str, type[BaseModel]] = {
+    "Scenario": Scenario,
+    "Result": Result,
+    "ErrorReport": ErrorReport,
+}
+"""Top-level models by the name ``railtwin schema NAME`` knows them by."""
+
+
+def all_json_schemas() -> dict[str, dict[str, Any]]:
+    """{name: JSON Schema} of every top-level model in ``MODELS``."""
+    return {name: model.model_json_schema() for name, model in MODELS.items()}
+
+
+__all__ = [
+    "MAX_SAMPLES",
+    "MODELS",
+    "SCHEMA_VERSION",
+    "CompliantFoundation",
+    "CosineRail",
+    "Derived",
+    "ErrorReport",
+    "FieldError",
+    "FlatOutline",
+    "FlatRail",
+    "InitialState",
+    "Material",
+    "RailSamples",
+    "Result",
+    "RigidFoundation",
+    "RoundOutline",
+    "RoundedFlatOutline",
+    "RunStats",
+    "SampledOutline",
+    "SampledRail",
+    "Scenario",
+    "Series",
+    "StepRail",
+    "StrictModel",
+    "Summary",
+    "Transition",
+    "Wheel",
+    "all_json_schemas",
+]
