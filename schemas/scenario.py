@@ -72,8 +72,9 @@ class SampledOutline(StrictModel):
 
     θ = 0 is the bottom of the wheel at φ = 0 (CONTRACT.md ``wheel.phase``); the
     outline is periodic, so the samples must lie within one turn (last - first
-    <= 2π) and between them cover most of it (the gap closing the turn is no
-    larger than a quarter turn). Radii are absolute (m), within 10 % of R.
+    < 2π: the last sample joins the first a turn later) and cover most of it
+    (the gap closing the turn is no larger than a quarter turn). Radii are
+    absolute (m), within 10 % of R.
     """
 
     kind: Literal["sampled"]
@@ -97,9 +98,11 @@ class SampledOutline(StrictModel):
                     f"must be strictly increasing: {self.theta[i]!r} follows {self.theta[i - 1]!r}",
                 )
         span = self.theta[-1] - self.theta[0]
-        if span > TWO_PI * (1.0 + 1e-12):
+        if span >= TWO_PI:
             raise field_error(
-                "theta", f"spans {span:.6g} rad, more than one turn (2π): give one turn only"
+                "theta",
+                f"spans {span:.6g} rad: must be less than one turn (2π); the last sample "
+                "joins the first one a turn later, so do not repeat it",
             )
         if TWO_PI - span > 0.5 * math.pi:
             raise field_error(

@@ -287,6 +287,11 @@ def _ring(n: int, span: float = 2 * math.pi) -> list[float]:
         ),
         ({"theta": _ring(8, math.pi), "radius": [0.475] * 8}, "wheel.outline.theta", "cover"),
         ({"theta": [*_ring(8), 6.5], "radius": [0.475] * 9}, "wheel.outline.theta", "one turn"),
+        (
+            {"theta": [*_ring(8), 2 * math.pi], "radius": [0.475] * 9},
+            "wheel.outline.theta",
+            "repeat",
+        ),
         ({"theta": _ring(8), "radius": [0.475] * 7}, "wheel.outline.radius", "same length"),
         ({"theta": _ring(8), "radius": [0.475] * 7 + [0.6]}, "wheel.outline.radius[7]", "10 %"),
         ({"theta": _ring(8), "radius": [0.475] * 7 + [-0.1]}, "wheel.outline.radius[7]", "greater"),

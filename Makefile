@@ -1,0 +1,75 @@
+# railtwin: one entry point for humans and CI. Needs only python3 (3.11+), pip and make.
+#
+#   make test     venv + editable install with test extras, then ruff, mypy, pytest
+#   make demo     run a representative scenario and print its summary table
+#   make bench    run the benchmarks (benchmarks/run_all.py)
+#   make figures  draw the paper's figures into figures/
+#   make lint     ruff and mypy only
+#
+# The venv is (re)installed only when pyproject.toml changes (stamp file).
+
+PYTHON ?= python3
+VENV   ?= .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed-stamp
+DEMO_SCENARIO ?= examples/cosine_hertz_560hz.json
+
+# numba's compile cache: inside the (git-ignored) venv so that a read-only
+# site-packages or a fresh CI checkout never matters, and runs reuse it.
+export NUMBA_CACHE_DIR ?= $(CURDIR)/$(VENV)/numba-cache
+# Rerun's CLI asks about analytics on first run; keep CI and tests quiet.
+export RERUN_ANALYTICS ?= 0
+export PIP_DISABLE_PIP_VERSION_CHECK := 1
+
+.PHONY: help venv test lint ruff mypy pytest demo bench figures clean
+
+help:
+	@sed -n '2,10p' Makefile | sed 's/^# \{0,1\}//'
+
+$(BIN)/python:
+	$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "railtwin needs Python >= 3.11, got " + sys.version.split()[0]'
+	$(PYTHON) -m venv $(VENV)
+
+$(STAMP): pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --upgrade --quiet pip
+	$(BIN)/python -m pip install --quiet -e '.[test]'
+	touch $(STAMP)
+
+venv: $(STAMP)
+
+ruff: $(STAMP)
+	$(BIN)/ruff check .
+
+mypy: $(STAMP)
+	$(BIN)/mypy
+
+lint: ruff mypy
+
+pytest: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+# Runs all three checks even when one fails, then fails if any did.
+test: $(STAMP)
+	@failed=""; \
+	echo "== ruff =="; $(BIN)/ruff check . || failed="$$failed ruff"; \
+	echo "== mypy =="; $(BIN)/mypy || failed="$$failed mypy"; \
+	echo "== pytest =="; $(BIN)/python -m pytest -q || failed="$$failed pytest"; \
+	if [ -n "$$failed" ]; then echo "make test: FAILED:$$failed" >&2; exit 1; fi; \
+	echo "make test: all checks passed"
+
+demo: $(STAMP)
+	@echo "== railtwin demo: one scenario through the physics core =="
+	@echo "   (the streaming service demo is not there yet: this runs the batch CLI)"
+	@mkdir -p recordings
+	$(BIN)/railtwin simulate $(DEMO_SCENARIO) --out recordings/demo-result.json
+	@echo "== the streaming demo (railtwin serve) is not available yet =="
+
+bench: $(STAMP)
+	@test -f benchmarks/run_all.py || { echo "make bench: benchmarks/run_all.py is not there yet" >&2; exit 1; }
+	$(BIN)/python -m benchmarks.run_all
+
+figures: $(STAMP)
+	$(BIN)/railtwin figures --out figures/
+
+clean:
+	rm -rf $(VENV)/numba-cache .pytest_cache .mypy_cache .ruff_cache .hypothesis recordings/demo-result.json

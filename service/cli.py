@@ -1,0 +1,442 @@
+"""The ``railtwin`` command line.
+
+    railtwin simulate SCENARIO.json --out RESULT.json   # one case in, one result out
+    railtwin schema [NAME]                              # JSON Schemas of the contract
+    railtwin figures --out DIR                          # the paper's figures
+
+Subcommands are plug-ins: a module exposes ``register(subparsers)`` that adds
+its parser and sets ``func`` (``handler(args) -> exit code``) with
+``set_defaults``. The built-in commands are registered below; the optional
+modules in ``OPTIONAL_COMMAND_MODULES`` (``service.serve_cli``,
+``service.replay_cli``) are registered when they exist; one that fails to import
+(e.g. a missing optional dependency) is skipped with a warning on stderr, so
+that ``simulate`` keeps working. ``register`` must stay cheap: import
+heavy libraries (zenoh, rerun, matplotlib) inside the handler, not at module
+level, so that ``railtwin --help`` and ``railtwin simulate`` start fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import os
+import sys
+import tempfile
+import traceback
+from collections.abc import Sequence
+from pathlib import Path
+from typing import IO, Any, NoReturn
+
+EXIT_OK = 0
+EXIT_FAILURE = 1
+EXIT_USAGE = 2
+EXIT_INTERRUPTED = 130
+
+EXIT_CODES_HELP = """\
+exit status:
+  0    success
+  1    runtime failure (the simulation failed, an output could not be written,
+       an optional dependency is missing)
+  2    invalid input (bad arguments, unreadable or invalid scenario file; the
+       message names the offending field)
+  130  interrupted (Ctrl-C)
+"""
+
+OPTIONAL_COMMAND_MODULES: tuple[str, ...] = ("service.serve_cli", "service.replay_cli")
+"""Modules that add subcommands when present (each defines ``register(subparsers)``)."""
+
+PROG = "railtwin"
+
+
+class CommandError(Exception):
+    """A failure to report as one message and an exit code, without a traceback."""
+
+    def __init__(self, message: str, code: int = EXIT_FAILURE, report: Any = None) -> None:
+        super().__init__(message)
+        self.code = code
+        self.report = report
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with the usual Unix behaviour: usage errors exit 2 with one clear line."""
+
+    def error(self, message: str) -> NoReturn:
+        self.print_usage(sys.stderr)
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {message}\n")
+
+
+# --- simulate -------------------------------------------------------------------------------
+
+
+def register_simulate(subparsers: Any) -> None:
+    p = subparsers.add_parser(
+        "simulate",
+        help="run one scenario file and write its result",
+        description=(
+            "Validate SCENARIO (CONTRACT.md), simulate every pass and write the "
+            "result JSON. Prints a summary table on stdout (or JSON with --format "
+            "json); progress of multi-pass runs goes to stderr. Invalid scenarios are "
+            "reported on stderr with the offending field's path, and exit 2."
+        ),
+        epilog=EXIT_CODES_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("scenario", metavar="SCENARIO.json", help="scenario file ('-' for stdin)")
+    p.add_argument(
+        "-o",
+        "--out",
+        metavar="RESULT.json",
+        help="write the result here ('-' for stdout, which replaces the summary)",
+    )
+    p.add_argument(
+        "--format",
+        choices=("table", "json"),
+        default="table",
+        help="summary on stdout and errors on stderr as a table/text (default) or JSON",
+    )
+    p.add_argument("-q", "--quiet", action="store_true", help="no summary, no progress")
+    p.set_defaults(func=cmd_simulate)
+
+
+def cmd_simulate(args: argparse.Namespace) -> int:
+    from pydantic import ValidationError
+
+    from schemas.errors import ErrorReport
+    from schemas.scenario import Scenario
+
+    source = "<stdin>" if args.scenario == "-" else args.scenario
+    data = _read_json(args.scenario, source)
+    try:
+        scenario = Scenario.model_validate(data)
+    except ValidationError as exc:
+        report = ErrorReport.from_validation_error(exc, data, source)
+        raise CommandError(f"invalid scenario {report.to_text()}", EXIT_USAGE, report) from None
+
+    from service.scenario_runner import run_scenario
+
+    progress = None
+    if scenario.passes > 1 and not args.quiet:
+        progress = _ProgressPrinter(sys.stderr)
+    try:
+        result = run_scenario(scenario, progress=progress)
+    except KeyboardInterrupt:
+        raise
+    except Exception as exc:
+        if args.debug:
+            traceback.print_exc()
+        message = f"simulation failed: {type(exc).__name__}: {exc}"
+        raise CommandError(
+            message,
+            EXIT_FAILURE,
+            ErrorReport(error="runtime_error", message=message, source=source),
+        ) from None
+    finally:
+        if progress is not None:
+            progress.close()
+
+    text = result.model_dump_json()
+    if args.out == "-":
+        sys.stdout.write(text + "\n")
+        return EXIT_OK
+    if args.out:
+        _write_atomic(Path(args.out), text)
+    if not args.quiet:
+        if args.format == "json":
+            sys.stdout.write(json.dumps(summary_document(result, args.out)) + "\n")
+        else:
+            sys.stdout.write(summary_table(result, source, args.out))
+    return EXIT_OK
+
+
+def _read_json(path: str, source: str) -> Any:
+    from schemas.errors import ErrorReport
+
+    try:
+        text = sys.stdin.read() if path == "-" else Path(path).read_text(encoding="utf-8")
+    except OSError as exc:
+        message = f"cannot read {source}: {exc.strerror or exc}"
+        raise CommandError(
+            message, EXIT_USAGE, ErrorReport(error="io_error", message=message, source=source)
+        ) from None
+    except UnicodeDecodeError as exc:
+        message = f"cannot read {source}: not UTF-8 text ({exc.reason})"
+        raise CommandError(
+            message, EXIT_USAGE, ErrorReport(error="invalid_input", message=message, source=source)
+        ) from None
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        message = f"{source} is not valid JSON: line {exc.lineno} column {exc.colno}: {exc.msg}"
+        raise CommandError(
+            message,
+            EXIT_USAGE,
+            ErrorReport(error="invalid_input", message=message, source=source),
+        ) from None
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` via a temporary file, so a reader never sees half a result."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+        try:
+            with os.fdopen(fd, "w", encoding="utf-8") as f:
+                f.write(text)
+                f.write("\n")
+            os.replace(tmp, path)
+        except BaseException:
+            Path(tmp).unlink(missing_ok=True)
+            raise
+    except OSError as exc:
+        raise CommandError(f"cannot write {path}: {exc.strerror or exc}") from None
+
+
+class _ProgressPrinter:
+    """``progress(done, total)`` for stderr: a rewritten line on a terminal, lines otherwise."""
+
+    def __init__(self, stream: IO[str]) -> None:
+        self.stream = stream
+        self.tty = stream.isatty()
+        self.dirty = False
+
+    def __call__(self, done: int, total: int) -> None:
+        line = f"{PROG}: pass {done}/{total}"
+        if self.tty:
+            self.stream.write("\r" + line)
+            self.dirty = True
+        else:
+            self.stream.write(line + "\n")
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self.dirty:
+            self.stream.write("\n")
+            self.stream.flush()
+            self.dirty = False
+
+
+def summary_document(result: Any, out: str | None) -> dict[str, Any]:
+    """The machine-readable report of ``simulate --format json``."""
+    doc: dict[str, Any] = result.model_dump(
+        mode="json", include={"derived", "summary", "passes_summary", "stats"}
+    )
+    doc["transitions"] = len(result.transitions)
+    doc["samples"] = len(result.series.t)
+    doc["out"] = out
+    return doc
+
+
+def summary_table(result: Any, source: str, out: str | None) -> str:
+    """A human summary: scenario line, derived constants, one row per pass."""
+    s = result.scenario
+    d = result.derived
+    n = s.passes
+    lines = [
+        f"{source}: {s.contact} contact, {s.rail.kind} rail, {s.wheel.outline.kind} wheel, "
+        f"{s.foundation.kind} foundation; {n} pass{'es' if n != 1 else ''} of "
+        f"{s.duration:g} s at {s.speed:g} m/s",
+        f"derived: C = {d.contact_coefficient:.5g} N/m^1.5, "
+        f"δ0 = {d.static_indentation * 1e6:.1f} µm, f0 = {d.contact_frequency:.1f} Hz"
+        + (
+            f", F_Y = {d.yield_force / 1e3:.1f} kN, δ_Y = {d.yield_indentation * 1e6:.1f} µm"
+            if d.yield_force is not None and d.yield_indentation is not None
+            else ""
+        ),
+        "",
+    ]
+    header = (
+        "pass",
+        "peak F [kN]",
+        "min F [kN]",
+        "losses",
+        "1st loss [s]",
+        "out of contact",
+        "max δ [µm]",
+        "max dent [µm]",
+    )
+    rows: list[tuple[str, ...]] = [header]
+    for i, p in enumerate(result.passes_summary, start=1):
+        rows.append(
+            (
+                str(i),
+                f"{p.peak_force / 1e3:.2f}",
+                f"{p.min_force / 1e3:.2f}",
+                str(p.contact_losses),
+                "-" if p.first_loss_time is None else f"{p.first_loss_time:.6f}",
+                f"{100.0 * p.time_out_of_contact / s.duration:.1f} %",
+                f"{p.max_indentation * 1e6:.2f}",
+                f"{p.max_dent * 1e6:.2f}",
+            )
+        )
+    if len(rows) > 41:  # long multi-pass runs: first and last passes
+        rows = [*rows[:21], tuple("⋮" if j == 0 else "" for j in range(len(header))), *rows[-20:]]
+    widths = [max(len(r[j]) for r in rows) for j in range(len(header))]
+    for r in rows:
+        lines.append("  ".join(c.rjust(w) for c, w in zip(r, widths, strict=True)))
+    lines.append("")
+    tail = f"{len(result.series.t)} samples, {len(result.transitions)} transitions (last pass)"
+    if result.stats is not None and result.stats.wall_time is not None:
+        tail += f"; {result.stats.steps} steps in {result.stats.wall_time:.2f} s"
+    lines.append(tail)
+    lines.append(f"result written to {out}" if out else "result not written (no --out)")
+    return "\n".join(lines) + "\n"
+
+
+# --- schema ---------------------------------------------------------------------------------
+
+
+def register_schema(subparsers: Any) -> None:
+    p = subparsers.add_parser(
+        "schema",
+        help="print the JSON Schemas of the contract",
+        description=(
+            "Print the JSON Schema of every top-level model as one JSON object "
+            "{name: schema}, or of the model NAME alone."
+        ),
+        epilog=EXIT_CODES_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("name", nargs="?", metavar="NAME", help="model name, e.g. Scenario, Result")
+    p.add_argument("--indent", type=int, default=2, help="JSON indentation (default 2)")
+    p.set_defaults(func=cmd_schema)
+
+
+def cmd_schema(args: argparse.Namespace) -> int:
+    from schemas import all_json_schemas
+
+    schemas = all_json_schemas()
+    doc: Any = schemas
+    if args.name is not None:
+        by_lower = {k.lower(): k for k in schemas}
+        key = by_lower.get(args.name.lower())
+        if key is None:
+            raise CommandError(
+                f"no schema named {args.name!r}; known: {', '.join(sorted(schemas))}", EXIT_USAGE
+            )
+        doc = schemas[key]
+    sys.stdout.write(json.dumps(doc, indent=args.indent or None, ensure_ascii=False) + "\n")
+    return EXIT_OK
+
+
+# --- figures --------------------------------------------------------------------------------
+
+
+def register_figures(subparsers: Any) -> None:
+    p = subparsers.add_parser(
+        "figures",
+        help="draw the paper's figures (needs matplotlib)",
+        description="Draw the figures of MODEL.md §6 into DIR and list the files written.",
+        epilog=EXIT_CODES_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument(
+        "--out", metavar="DIR", default="figures", help="output directory (default figures/)"
+    )
+    p.set_defaults(func=cmd_figures)
+
+
+def cmd_figures(args: argparse.Namespace) -> int:
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg")
+    except ModuleNotFoundError:
+        raise CommandError(
+            "matplotlib is not installed: pip install -e '.[figures]' (or make figures)"
+        ) from None
+    try:
+        module = importlib.import_module("service.figures")
+    except ModuleNotFoundError as exc:
+        if exc.name != "service.figures":
+            raise
+        raise CommandError("service/figures.py is not there yet: no figures to draw") from None
+    out = Path(args.out)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise CommandError(f"cannot create {out}: {exc.strerror or exc}") from None
+    paths = module.make_figures(out)
+    for path in paths:
+        sys.stdout.write(f"{path}\n")
+    return EXIT_OK
+
+
+# --- the parser and main --------------------------------------------------------------------
+
+BUILTIN_COMMANDS = (register_simulate, register_schema, register_figures)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The full parser: built-in commands and those of the optional modules present."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        pkg_version = version("railtwin")
+    except PackageNotFoundError:
+        pkg_version = "unknown (not installed)"
+
+    parser = _Parser(
+        prog=PROG,
+        description=(
+            "railtwin: a streaming digital twin of the wheel/rail contact "
+            "(vibro-impact rolling, Hertzian and elastic-plastic contact)."
+        ),
+        epilog=EXIT_CODES_HELP + "\nRun 'railtwin COMMAND --help' for a command's options.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {pkg_version}")
+    parser.add_argument(
+        "--debug", action="store_true", help="print the traceback of runtime failures"
+    )
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    subparsers.required = True
+    for register in BUILTIN_COMMANDS:
+        register(subparsers)
+    for name in OPTIONAL_COMMAND_MODULES:
+        try:
+            module = importlib.import_module(name)
+        except ModuleNotFoundError as exc:
+            if exc.name == name:
+                continue  # not written yet
+            sys.stderr.write(f"{PROG}: warning: commands of {name} unavailable: {exc}\n")
+            continue
+        except ImportError as exc:
+            sys.stderr.write(f"{PROG}: warning: commands of {name} unavailable: {exc}\n")
+            continue
+        plugin = getattr(module, "register", None)
+        if callable(plugin):
+            plugin(subparsers)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``railtwin`` script; returns the exit status."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    args.debug = getattr(args, "debug", False)
+    try:
+        code: int = args.func(args)
+    except CommandError as exc:
+        _report(exc, args)
+        return exc.code
+    except KeyboardInterrupt:
+        sys.stderr.write(f"{PROG}: interrupted\n")
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        # stdout closed early (e.g. piped into head): not an error of ours
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return EXIT_OK
+    return code
+
+
+def _report(exc: CommandError, args: argparse.Namespace) -> None:
+    if getattr(args, "format", "table") == "json" and exc.report is not None:
+        sys.stderr.write(exc.report.model_dump_json() + "\n")
+    else:
+        sys.stderr.write(f"{PROG} {args.command}: {exc}\n")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,235 @@
+"""Run one validated ``Scenario`` through sim_core and package the ``Result``.
+
+This is the only place where the JSON contract (``schemas``) meets the physics
+(``sim_core``): it turns the pydantic scenario into sim_core objects, calls
+``simulate_passes`` and turns its arrays back into the contract's result.
+
+    >>> from schemas.scenario import Scenario, EXAMPLE_JSON
+    >>> result = run_scenario(Scenario.model_validate_json(EXAMPLE_JSON))  # doctest: +SKIP
+    >>> result.summary.contact_losses  # doctest: +SKIP
+    0
+"""
+
+from __future__ import annotations
+
+import inspect
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from schemas import result as res
+from schemas import scenario as sc
+
+Progress = Callable[[int, int], None]
+"""progress(done, total): called with the number of passes completed so far."""
+
+SUMMARY_FIELDS = tuple(res.Summary.model_fields)
+
+
+def build_material(scenario: sc.Scenario) -> Any:
+    from sim_core.materials import Material
+
+    m = scenario.material
+    return Material(m.youngs_modulus, m.poisson_ratio, m.yield_stress)
+
+
+def build_wheel(wheel: sc.Wheel) -> Any:
+    """The pydantic wheel outline as a ``sim_core.wheel.WheelOutline``."""
+    from sim_core.wheel import WheelOutline
+
+    o = wheel.outline
+    r = wheel.radius
+    if isinstance(o, sc.RoundOutline):
+        return WheelOutline.round(r)
+    if isinstance(o, sc.FlatOutline):
+        return WheelOutline.ideal_flat(r, o.length)
+    if isinstance(o, sc.RoundedFlatOutline):
+        return WheelOutline.rounded_flat(r, o.length, o.depth)
+    if isinstance(o, sc.SampledOutline):
+        return WheelOutline.sampled(
+            np.asarray(o.theta, float), np.asarray(o.radius, float), nominal_radius=r
+        )
+    raise TypeError(f"unknown wheel outline {o!r}")  # pragma: no cover - schema forbids it
+
+
+def build_rail(rail: sc.FlatRail | sc.CosineRail | sc.StepRail | sc.SampledRail) -> Any:
+    """The pydantic rail as a ``sim_core.rail.RailProfile``."""
+    from sim_core.rail import RailProfile
+
+    if isinstance(rail, sc.FlatRail):
+        return RailProfile.flat()
+    if isinstance(rail, sc.CosineRail):
+        return RailProfile.cosine(rail.amplitude, rail.wavelength)
+    if isinstance(rail, sc.StepRail):
+        return RailProfile.step(rail.height, rail.position)
+    if isinstance(rail, sc.SampledRail):
+        return RailProfile.sampled(np.asarray(rail.x, float), np.asarray(rail.y, float))
+    raise TypeError(f"unknown rail profile {rail!r}")  # pragma: no cover - schema forbids it
+
+
+def build_spec(scenario: sc.Scenario, derived: Any) -> Any:
+    """``PassageSpec`` of the scenario, with the contact model from the derived constants."""
+    from sim_core.contact_laws import ContactLaw, ContactModel
+    from sim_core.passage import Foundation, InitialState, PassageSpec
+
+    law = ContactLaw.from_name(scenario.contact)
+    contact = ContactModel(
+        law,
+        derived.contact_coefficient,
+        derived.yield_force or 0.0,
+        derived.yield_indentation or 0.0,
+    )
+    f = scenario.foundation
+    foundation = (
+        Foundation.compliant(f.mass, f.stiffness, f.damping)
+        if isinstance(f, sc.CompliantFoundation)
+        else Foundation.rigid()
+    )
+    i = scenario.initial
+    initial = None if i is None else InitialState(i.y_c, i.v_c, i.y_m, i.v_m)
+    w = scenario.wheel
+    return PassageSpec(
+        mass=w.mass,
+        load=w.load,
+        speed=scenario.speed,
+        duration=scenario.duration,
+        sample_rate=scenario.sample_rate,
+        contact=contact,
+        foundation=foundation,
+        initial=initial,
+        rtol=scenario.rtol,
+    )
+
+
+def derive_quantities(scenario: sc.Scenario) -> Any:
+    """``sim_core.materials.derive`` of the scenario (C, δ0, f0, F_Y, δ_Y)."""
+    from sim_core.materials import derive
+
+    w = scenario.wheel
+    return derive(build_material(scenario), radius=w.radius, load=w.load, mass=w.mass)
+
+
+def run_scenario(scenario: sc.Scenario, progress: Progress | None = None) -> res.Result:
+    """Simulate every pass of ``scenario`` and return the contract's ``Result``.
+
+    ``progress(done, total)`` is called as passes complete (if sim_core's
+    ``simulate_passes`` reports per pass; else once at the start and once at the end).
+    Raises whatever sim_core raises on a runtime failure (the CLI maps it to exit 1).
+    """
+    from sim_core.multipass import simulate_passes
+
+    started = time.perf_counter()
+    derived = derive_quantities(scenario)
+    spec = build_spec(scenario, derived)
+    wheel = build_wheel(scenario.wheel)
+    rail = build_rail(scenario.rail)
+
+    kwargs: dict[str, Any] = {
+        "passes": scenario.passes,
+        "phase": scenario.wheel.phase,
+        "constraint": scenario.constraint,
+        "curvature_stiffness": scenario.curvature_stiffness,
+    }
+    reports_progress = progress is not None and _accepts(simulate_passes, "progress")
+    if progress is not None:
+        progress(0, scenario.passes)
+        if reports_progress:
+            kwargs["progress"] = progress
+    out = simulate_passes(wheel, rail, spec, **kwargs)
+    if progress is not None and not reports_progress:
+        progress(scenario.passes, scenario.passes)
+    wall = time.perf_counter() - started
+    return package_result(scenario, derived, out, wall)
+
+
+def package_result(scenario: sc.Scenario, derived: Any, out: Any, wall_time: float) -> res.Result:
+    """Turn sim_core's ``MultiPassOutput`` into the contract's ``Result``."""
+    last = out.last
+    series = res.Series(
+        t=_floats(last.t),
+        x=_floats(last.x),
+        y_c=_floats(last.y_c),
+        v_c=_floats(last.v_c),
+        y_ck=_floats(last.y_ck),
+        y_m=_floats(last.y_m),
+        delta=_floats(last.delta),
+        force=_floats(last.force),
+        in_contact=np.asarray(last.in_contact, dtype=bool).ravel().tolist(),
+        v_m=_floats(last.v_m),
+    )
+    transitions = [
+        res.Transition(t=float(tr.t), kind=tr.kind, x=float(tr.x)) for tr in last.transitions
+    ]
+    summaries = [_summary(s) for s in out.summaries]
+    rail_after = None
+    if out.rail_after is not None:
+        x, y = _rail_samples(out.rail_after, last.x)
+        rail_after = res.RailSamples(x=x, y=y)
+    passes = list(out.passes)
+    stats = res.RunStats(
+        steps=sum(int(p.steps) for p in passes),
+        rejected_steps=sum(int(p.rejected_steps) for p in passes),
+        rhs_evaluations=sum(int(p.rhs_evaluations) for p in passes),
+        wall_time=max(0.0, float(wall_time)),
+    )
+    return res.Result(
+        scenario=scenario,
+        derived=res.Derived(
+            contact_coefficient=float(derived.contact_coefficient),
+            static_indentation=float(derived.static_indentation),
+            contact_frequency=float(derived.contact_frequency),
+            yield_force=_opt_float(derived.yield_force),
+            yield_indentation=_opt_float(derived.yield_indentation),
+        ),
+        series=series,
+        transitions=transitions,
+        summary=summaries[-1],
+        rail_after=rail_after,
+        passes_summary=summaries,
+        stats=stats,
+    )
+
+
+def _summary(s: Any) -> res.Summary:
+    values: dict[str, Any] = {}
+    for name in SUMMARY_FIELDS:
+        v = getattr(s, name)
+        if name == "contact_losses":
+            values[name] = int(v)
+        elif v is None:
+            values[name] = None
+        else:
+            values[name] = float(v)
+    return res.Summary(**values)
+
+
+def _rail_samples(rail: Any, x_grid: Any) -> tuple[list[float], list[float]]:
+    """(x, y) samples of a sim_core ``RailProfile``.
+
+    A dented rail is a sampled profile: its own samples. Any other profile (no
+    dent was left) is evaluated on ``x_grid``, the wheel positions of the last pass.
+    """
+    x = np.asarray(getattr(rail, "x", ()), dtype=np.float64)
+    if x.size:
+        return _floats(x), _floats(rail.y)
+    grid = np.asarray(x_grid, dtype=np.float64)
+    return _floats(grid), _floats(rail.height(grid))
+
+
+def _floats(a: Any) -> list[float]:
+    values: list[float] = np.asarray(a, dtype=np.float64).ravel().tolist()
+    return values
+
+
+def _opt_float(v: Any) -> float | None:
+    return None if v is None else float(v)
+
+
+def _accepts(func: Callable[..., Any], name: str) -> bool:
+    try:
+        params = inspect.signature(func).parameters
+    except (TypeError, ValueError):
+        return False
+    return name in params or any(p.kind is p.VAR_KEYWORD for p in params.values())
