@@ -1,0 +1,141 @@
+"""``railtwin serve``: run the streaming twin of one site until SIGINT/SIGTERM.
+
+    railtwin serve --site examples/site.toml [--listen E]... [--connect E]...
+                   [--zenoh-config FILE] [--pace fast|realtime] [--recordings DIR]
+
+Also runnable as ``python -m service.serve_cli ...`` (what the tests do).
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+from service.mcap_log import DEFAULT_MAX_BYTES, DEFAULT_MAX_SECONDS, McapLog
+from service.physics import PassageSimulator
+from service.recorder import Recorder
+from service.rerun_recording import RerunRecording
+from service.site import SiteFileError, load_site
+from service.twin import Twin
+from service.zenoh_session import DEFAULT_ENDPOINT, build_config, open_session
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--site", type=Path, required=True,
+                   help="site file (TOML), e.g. examples/site.toml")
+    p.add_argument("--listen", action="append", default=[], metavar="ENDPOINT",
+                   help=f"Zenoh endpoint to listen on (repeatable; default {DEFAULT_ENDPOINT} "
+                        "unless --zenoh-config or --connect is given)")
+    p.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
+                   help="Zenoh endpoint to connect to (repeatable)")
+    p.add_argument("--zenoh-config", type=Path, default=None, metavar="FILE",
+                   help="Zenoh JSON5 config file; --listen/--connect apply on top of it")
+    p.add_argument("--multicast-scouting", action="store_true",
+                   help="enable Zenoh multicast scouting (off by default: explicit endpoints)")
+    p.add_argument("--pace", choices=("fast", "realtime"), default="fast",
+                   help="fast: publish as soon as simulated; realtime: publish series in chunks "
+                        "as the wheel advances (for live displays)")
+    p.add_argument("--chunk-period", type=float, default=0.02, metavar="S",
+                   help="with --pace realtime: seconds of passage per chunk (default 0.02)")
+    p.add_argument("--recordings", type=Path, default=Path("recordings"), metavar="DIR",
+                   help="where the MCAP log and the .rrd go (default recordings/)")
+    p.add_argument("--no-mcap", action="store_true", help="do not write the MCAP log")
+    p.add_argument("--no-rerun", action="store_true", help="do not write the Rerun recording")
+    p.add_argument("--mcap-max-mb", type=float, default=DEFAULT_MAX_BYTES / 2**20,
+                   help="start a new MCAP file past this size (MB)")
+    p.add_argument("--mcap-max-seconds", type=float, default=DEFAULT_MAX_SECONDS,
+                   help="start a new MCAP file after this many seconds")
+    p.add_argument("--queue", type=int, default=10_000,
+                   help="passages that may wait (default 10000)")
+    p.add_argument("--physics", choices=("sim_core", "stub"), default="sim_core",
+                   help=argparse.SUPPRESS)
+
+
+def register(subparsers: Any) -> argparse.ArgumentParser:
+    """Add ``serve`` to the ``railtwin`` CLI's subparsers."""
+    p: argparse.ArgumentParser = subparsers.add_parser(
+        "serve", help="run the streaming twin of a site over Zenoh",
+        description="Run the streaming twin: wheel passages in over Zenoh, forces and "
+                    "indentations out; every message in MCAP, every passage in Rerun.",
+    )
+    add_arguments(p)
+    p.set_defaults(func=run)
+    return p
+
+
+def make_physics(kind: str, site: Any) -> PassageSimulator:
+    if kind == "stub":
+        from service.stub_physics import StubPhysics
+
+        return StubPhysics(site)
+    from service.site_physics import SitePhysics
+
+    return SitePhysics(site)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Serve until SIGINT/SIGTERM; exit status 0 on a clean stop, 2 on a bad site file."""
+    try:
+        site = load_site(args.site)
+    except SiteFileError as exc:
+        print(f"railtwin serve: {exc}", file=sys.stderr)
+        return 2
+    listen = args.listen or ([] if (args.zenoh_config or args.connect) else [DEFAULT_ENDPOINT])
+    cfg = build_config(listen=listen, connect=args.connect, config_file=args.zenoh_config,
+                       multicast_scouting=args.multicast_scouting)
+    physics = make_physics(args.physics, site)
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    stem = f"railtwin-{site.site_id}-{stamp}"
+    mcap = None if args.no_mcap else McapLog(
+        args.recordings, stem, max_bytes=int(args.mcap_max_mb * 2**20),
+        max_seconds=args.mcap_max_seconds)
+    rerun = None if args.no_rerun else RerunRecording(args.recordings / f"{stem}.rrd", site.site_id)
+    recorder = Recorder(mcap, rerun) if (mcap or rerun) else None
+
+    stop = threading.Event()
+
+    def on_signal(signum: int, _frame: Any) -> None:
+        stop.set()
+
+    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        with open_session(cfg) as session:
+            twin = Twin(site, session, physics, recorder=recorder, pace=args.pace,
+                        chunk_period=args.chunk_period, queue_capacity=args.queue)
+            twin.start()
+            where = ", ".join(listen) if listen else "(from config)"
+            print(f"railtwin serve: site {site.site_id!r} ({site.length:g} m, {site.contact}), "
+                  f"listening on {where}; passages on {twin.keys.passage}", flush=True)
+            if recorder is not None:
+                print(f"railtwin serve: recording to {args.recordings}/{stem}*", flush=True)
+            print("railtwin serve: ready", flush=True)
+            while not stop.wait(0.2):
+                pass
+            twin.stop()
+            h = twin.health()
+            print(f"railtwin serve: stopped after {h.passages_done} passages, {h.errors} errors",
+                  flush=True)
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+    if mcap is not None:
+        for f in mcap.files:
+            print(f"railtwin serve: MCAP log {f}", flush=True)
+    if rerun is not None:
+        print(f"railtwin serve: Rerun recording {rerun.path}", flush=True)
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="railtwin serve", description=__doc__.split("\n")[0])
+    add_arguments(p)
+    return run(p.parse_args(argv))
+
+
+if __name__ == "__main__":
+    sys.exit(main())

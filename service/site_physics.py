@@ -1,0 +1,200 @@
+"""The site's physics on ``sim_core``: each wheel simulated over the site's current rail.
+
+A passage is the wheel centre rolling from x_C = 0 to the site's length at the
+passage's speed (duration = length / speed), from static equilibrium, over
+the rigid constraint of the wheel's outline on the rail. With the
+Hertzian–perfectly plastic law each passage may dent the rail; the next wheel
+sees the dented rail (MODEL.md §5), so passages are simulated in arrival order.
+
+Constraint tables of round wheels depend only on the radius and the rail, and
+are cached per (radius, rail revision); out-of-round wheels are tabulated per
+passage (their table depends on the outline and the phase).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections import OrderedDict
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from schemas.messages import PassageResult, RailState, WheelPassage
+from schemas.result import Summary, Transition
+from schemas.scenario import (
+    CosineRail,
+    FlatOutline,
+    FlatRail,
+    RoundedFlatOutline,
+    RoundOutline,
+    SampledOutline,
+    SampledRail,
+    StepRail,
+)
+from schemas.site import SiteConfig
+from sim_core.constraint import tabulate_constraint
+from sim_core.constraint_table import ConstraintTable
+from sim_core.contact_laws import ContactLaw, ContactModel
+from sim_core.dents import dented_rail
+from sim_core.materials import Material, derive
+from sim_core.passage import Foundation, PassageOutput, PassageSpec, simulate_passage
+from sim_core.rail import RailProfile
+from sim_core.summary import summarize
+from sim_core.wheel import WheelOutline
+
+TABLE_MARGIN = 0.01
+"""m of rail tabulated beyond each end of the site (the integrator looks a little ahead)."""
+TABLE_CACHE_SIZE = 32
+RAIL_STATE_SPACING = 1e-3
+"""m between the samples of the published rail state."""
+
+
+def rail_profile(site: SiteConfig) -> RailProfile:
+    """The site's rail as a ``sim_core`` profile (a file rail is resolved by ``service.site``)."""
+    r = site.rail
+    if isinstance(r, FlatRail):
+        return RailProfile.flat()
+    if isinstance(r, CosineRail):
+        return RailProfile.cosine(r.amplitude, r.wavelength)
+    if isinstance(r, StepRail):
+        return RailProfile.step(r.height, r.position)
+    if isinstance(r, SampledRail):
+        return RailProfile.sampled(np.asarray(r.x), np.asarray(r.y))
+    raise ValueError(f"rail kind {r.kind!r} must be resolved before simulation (service.site)")
+
+
+def wheel_outline(p: WheelPassage) -> WheelOutline:
+    o = p.outline
+    if isinstance(o, RoundOutline):
+        return WheelOutline.round(p.radius)
+    if isinstance(o, FlatOutline):
+        return WheelOutline.ideal_flat(p.radius, o.length)
+    if isinstance(o, RoundedFlatOutline):
+        return WheelOutline.rounded_flat(p.radius, o.length, o.depth)
+    if isinstance(o, SampledOutline):
+        return WheelOutline.sampled(np.asarray(o.theta), np.asarray(o.radius), p.radius)
+    raise ValueError(f"unknown outline {o!r}")
+
+
+@dataclass(frozen=True)
+class _Rail:
+    """The rail now, swapped as a whole so readers on other threads see a consistent pair."""
+
+    profile: RailProfile
+    revision: int
+
+
+class SitePhysics:
+    """Implements ``service.physics.PassageSimulator`` with ``sim_core``."""
+
+    def __init__(self, site: SiteConfig) -> None:
+        self.site = site
+        self.material = Material(
+            site.material.youngs_modulus, site.material.poisson_ratio, site.material.yield_stress
+        )
+        self.law = ContactLaw.from_name(site.contact)
+        f = site.foundation
+        self.foundation = (
+            Foundation.compliant(f.mass, f.stiffness, f.damping)
+            if f.kind == "compliant" else Foundation.rigid()
+        )
+        self.base_rail = rail_profile(site)
+        self._rail = _Rail(self.base_rail, 0)
+        self._tables: OrderedDict[tuple[float, int], ConstraintTable] = OrderedDict()
+        self._done = 0
+        self._state_lock = threading.Lock()
+        self._state_cache: tuple[int, int, RailState] | None = None
+
+    # --- simulation --------------------------------------------------------------------
+
+    def _table(self, passage: WheelPassage, rail: _Rail) -> ConstraintTable:
+        x0, x1 = -TABLE_MARGIN, self.site.length + TABLE_MARGIN
+        if passage.outline.kind != "round":
+            return tabulate_constraint(wheel_outline(passage), rail.profile, x0, x1,
+                                       phase=passage.phase)
+        key = (passage.radius, rail.revision)
+        table = self._tables.get(key)
+        if table is None:
+            table = tabulate_constraint(WheelOutline.round(passage.radius), rail.profile, x0, x1)
+            self._tables[key] = table
+            while len(self._tables) > TABLE_CACHE_SIZE:
+                self._tables.popitem(last=False)
+        else:
+            self._tables.move_to_end(key)
+        return table
+
+    def contact_model(self, passage: WheelPassage) -> ContactModel:
+        d = derive(self.material, passage.radius, passage.load, passage.mass)
+        return ContactModel(self.law, d.contact_coefficient, d.yield_force or 0.0,
+                            d.yield_indentation or 0.0, self.material.johnson_coefficient)
+
+    def simulate(self, passage: WheelPassage) -> PassageResult:
+        start = time.perf_counter()
+        site = self.site
+        rail = self._rail
+        contact = self.contact_model(passage)
+        spec = PassageSpec(
+            mass=passage.mass, load=passage.load, speed=passage.speed,
+            duration=site.length / passage.speed, sample_rate=site.output_sample_rate,
+            contact=contact, foundation=self.foundation, initial=None, rtol=site.rtol,
+        )
+        out = simulate_passage(self._table(passage, rail), spec)
+        max_dent = 0.0
+        if self.law == ContactLaw.HERTZ_PLASTIC:
+            after = dented_rail(rail.profile, out, contact)
+            if after is not None:
+                max_dent = _deepest(rail.profile, after, out)
+                self._rail = _Rail(after, rail.revision + 1)
+                self._tables.clear()
+        self._done += 1
+        return self._result(passage, out, max_dent, rail.revision, time.perf_counter() - start)
+
+    def _result(self, p: WheelPassage, out: PassageOutput, max_dent: float, revision: int,
+                wall: float) -> PassageResult:
+        s = summarize(out, max_dent)
+        return PassageResult(
+            site_id=self.site.site_id, passage_id=p.passage_id, train_id=p.train_id,
+            axle_index=p.axle_index, side=p.side, timestamp=p.timestamp, speed=p.speed,
+            sample_rate=self.site.output_sample_rate, t_start=float(out.t[0]),
+            site_length=self.site.length, x=out.x.tolist(), force=out.force.tolist(),
+            indentation=out.delta.tolist(), y_c=out.y_c.tolist(), y_ck=out.y_ck.tolist(),
+            transitions=[Transition(t=tr.t, kind=tr.kind, x=tr.x)  # type: ignore[arg-type]
+                         for tr in out.transitions],
+            summary=Summary(
+                peak_force=s.peak_force, min_force=s.min_force, contact_losses=s.contact_losses,
+                first_loss_time=s.first_loss_time, time_out_of_contact=s.time_out_of_contact,
+                max_indentation=s.max_indentation, max_dent=s.max_dent,
+            ),
+            rail_revision=revision, wall_time=wall, steps=out.steps,
+        )
+
+    # --- rail state --------------------------------------------------------------------
+
+    def rail_state(self) -> RailState:
+        rail, done = self._rail, self._done
+        with self._state_lock:
+            cached = self._state_cache
+            if cached is not None and cached[0] == rail.revision:
+                return cached[2].model_copy(update={"passages_done": done})
+            n = max(2, math.ceil(self.site.length / RAIL_STATE_SPACING) + 1)
+            x = np.linspace(0.0, self.site.length, n)
+            y = rail.profile.height(x)
+            dent = np.clip(self.base_rail.height(x) - y, 0.0, None)
+            state = RailState(
+                site_id=self.site.site_id, revision=rail.revision, passages_done=done,
+                x=x.tolist(), y=y.tolist(), dent=dent.tolist(),
+                max_dent=float(dent.max()) if dent.size else 0.0,
+            )
+            self._state_cache = (rail.revision, done, state)
+            return state
+
+
+def _deepest(before: RailProfile, after: RailProfile, out: PassageOutput) -> float:
+    """Deepest new dent of one passage, where it pressed (``delta_c_x``)."""
+    x: NDArray[np.float64] = out.delta_c_x
+    if x.size == 0:
+        return 0.0
+    return max(0.0, float(np.max(before.height(x) - after.height(x))))

@@ -1,0 +1,364 @@
+"""The streaming twin of one site: passages in over Zenoh, forces and indentations out.
+
+Pipeline, per message on ``railtwin/<site>/passage``:
+
+1. the Zenoh callback only timestamps the payload and queues it (it never
+   blocks Zenoh; a full queue gets an ``overloaded`` ServiceError);
+2. one worker thread, in arrival order: validate (a bad input becomes a
+   ``ServiceError`` naming the field, on ``railtwin/<site>/error``) →
+   simulate (the injected ``PassageSimulator``) → publish ``force/<p>``,
+   ``indentation/<p>`` and ``result/<p>``;
+3. the ``Recorder`` thread logs every received and published message to MCAP
+   and draws the passage in Rerun.
+
+With ``pace="realtime"`` the series are published in chunks when the wheel
+would reach their end (a pacer thread), and the result when it leaves the site.
+Queryables answer ``railtwin/<site>/rail`` (``RailState``) and
+``railtwin/health`` (``Health``).
+"""
+
+from __future__ import annotations
+
+import base64
+import contextlib
+import heapq
+import json
+import queue
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any, Literal
+
+import zenoh
+from pydantic import BaseModel, ValidationError
+
+from schemas.errors import format_path
+from schemas.messages import (
+    FieldProblem,
+    Health,
+    PassageResult,
+    PassageSeries,
+    RailState,
+    RejectedInput,
+    ServiceError,
+    WheelPassage,
+    encoding_schema,
+)
+from schemas.site import SiteConfig
+from service.keyspace import HEALTH_KEY, SiteKeys
+from service.physics import PassageSimulator
+from service.recorder import Recorder
+
+Pace = Literal["fast", "realtime"]
+
+
+def json_encoding(model: type[BaseModel]) -> zenoh.Encoding:
+    """``application/json;railtwin.<Model>/<version>``."""
+    return zenoh.Encoding.APPLICATION_JSON.with_schema(encoding_schema(model))
+
+
+@dataclass(frozen=True)
+class Inbound:
+    """A payload as it arrived, before anything was made of it."""
+
+    key: str
+    payload: bytes
+    received_ns: int
+    received_mono: float
+
+
+@dataclass(order=True)
+class _Due:
+    """A paced publication: at ``due`` (monotonic s)."""
+
+    due: float
+    seq: int
+    key: str = field(compare=False)
+    model: type[BaseModel] = field(compare=False)
+    data: bytes = field(compare=False)
+
+
+_STOP = object()
+
+
+def service_error_from_validation(
+    exc: ValidationError, payload: bytes, site_id: str, received_at: float
+) -> ServiceError:
+    """A ServiceError naming the offending fields of a payload that is not a WheelPassage."""
+    try:
+        raw: Any = json.loads(payload)
+    except ValueError:
+        raw = None
+    problems = []
+    for e in exc.errors(include_url=False):
+        path = format_path(tuple(e["loc"]), raw, e.get("ctx"))
+        ctx = e.get("ctx") or {}
+        custom = e["type"] == "invalid_field" and "reason" in ctx
+        message = str(ctx["reason"]) if custom else e["msg"]
+        problems.append(FieldProblem(field=path, message=message, type=e["type"]))
+    invalid_json = any(p.type == "json_invalid" for p in problems)
+    first = problems[0] if problems else None
+    field_name = first.field if first is not None and first.field else None
+    head = "not JSON" if invalid_json else "not a valid WheelPassage"
+    detail = f"{first.field or '(whole message)'}: {first.message}" if first else ""
+    more = f" (+{len(problems) - 1} more)" if len(problems) > 1 else ""
+    passage_id = raw.get("passage_id") if isinstance(raw, dict) else None
+    return ServiceError(
+        site_id=site_id,
+        kind="invalid_json" if invalid_json else "invalid_passage",
+        message=f"passage rejected, {head}: {detail}{more}",
+        field=field_name,
+        problems=problems,
+        passage_id=passage_id if isinstance(passage_id, str) else None,
+        received_at=received_at,
+    )
+
+
+class Twin:
+    """The service of one site on an open Zenoh session (the caller owns the session)."""
+
+    def __init__(
+        self,
+        site: SiteConfig,
+        session: zenoh.Session,
+        physics: PassageSimulator,
+        *,
+        recorder: Recorder | None = None,
+        pace: Pace = "fast",
+        chunk_period: float = 0.02,
+        queue_capacity: int = 10_000,
+    ) -> None:
+        self.site = site
+        self.keys = SiteKeys(site.site_id)
+        self.session = session
+        self.physics = physics
+        self.recorder = recorder
+        self.pace = pace
+        self.chunk_period = chunk_period
+        self.queue_capacity = queue_capacity
+        self._queue: queue.Queue[Any] = queue.Queue(maxsize=queue_capacity)
+        self._encodings: dict[type[BaseModel], zenoh.Encoding] = {
+            m: json_encoding(m)
+            for m in (PassageSeries, PassageResult, ServiceError, RailState, Health)
+        }
+        self.started_at = time.time()
+        self._started_mono = time.monotonic()
+        self.passages_received = 0
+        self.passages_done = 0
+        self.errors = 0
+        self.last_error: ServiceError | None = None
+        self._worker = threading.Thread(target=self._work, name="railtwin-worker", daemon=True)
+        self._due: list[_Due] = []
+        self._due_seq = 0
+        self._due_cv = threading.Condition()
+        self._pacer: threading.Thread | None = None
+        self._pacer_stop = False
+        self._declared: list[Any] = []
+
+    # --- life cycle --------------------------------------------------------------------
+
+    def start(self) -> None:
+        """Declare the subscriber and queryables, start the threads."""
+        if self.recorder is not None:
+            self.recorder.rail(self.physics.rail_state())
+        self._worker.start()
+        if self.pace == "realtime":
+            self._pacer = threading.Thread(target=self._pace, name="railtwin-pacer", daemon=True)
+            self._pacer.start()
+        s = self.session
+        self._declared = [
+            s.declare_queryable(self.keys.rail, self._on_rail_query),
+            s.declare_queryable(HEALTH_KEY, self._on_health_query),
+            s.declare_subscriber(self.keys.passage, self._on_sample),
+        ]
+
+    def stop(self) -> None:
+        """Stop taking input, finish what is queued (paced output at once), close the log."""
+        for d in reversed(self._declared):
+            with contextlib.suppress(Exception):  # the session may already be closing
+                d.undeclare()
+        self._declared = []
+        self._queue.put(_STOP)
+        self._worker.join()
+        if self._pacer is not None:
+            with self._due_cv:
+                self._pacer_stop = True
+                self._due_cv.notify()
+            self._pacer.join()
+        if self.recorder is not None:
+            self.recorder.close()
+
+    # --- Zenoh callbacks (never block) -------------------------------------------------
+
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        item = Inbound(
+            key=str(sample.key_expr), payload=sample.payload.to_bytes(),
+            received_ns=time.time_ns(), received_mono=time.monotonic(),
+        )
+        self.passages_received += 1
+        try:
+            self._queue.put_nowait(item)
+        except queue.Full:
+            self._log_input(item, None)
+            self._publish_error(ServiceError(
+                site_id=self.site.site_id, kind="overloaded",
+                message=f"passage dropped: {self.queue_capacity} passages already waiting",
+                field=None, received_at=item.received_ns / 1e9,
+            ))
+
+    def _on_rail_query(self, query: zenoh.Query) -> None:
+        with query:
+            try:
+                data = self.physics.rail_state().model_dump_json().encode()
+                query.reply(self.keys.rail, data, encoding=self._encodings[RailState])
+            except Exception as exc:
+                query.reply_err(f"rail state unavailable: {exc}")
+
+    def _on_health_query(self, query: zenoh.Query) -> None:
+        with query:
+            data = self.health().model_dump_json().encode()
+            query.reply(HEALTH_KEY, data, encoding=self._encodings[Health])
+
+    def health(self) -> Health:
+        mcap = self.recorder.mcap if self.recorder is not None else None
+        rerun = self.recorder.rerun if self.recorder is not None else None
+        mcap_path = mcap.path or (mcap.files[-1] if mcap.files else None) if mcap else None
+        return Health(
+            site_id=self.site.site_id, started_at=self.started_at,
+            uptime=time.monotonic() - self._started_mono,
+            passages_received=self.passages_received, passages_done=self.passages_done,
+            errors=self.errors, queue_depth=self._queue.qsize(),
+            queue_capacity=self.queue_capacity, last_error=self.last_error,
+            mcap_path=str(mcap_path) if mcap_path else None,
+            rrd_path=str(rerun.path) if rerun is not None else None,
+        )
+
+    # --- worker ------------------------------------------------------------------------
+
+    def _work(self) -> None:
+        while True:
+            item = self._queue.get()
+            if item is _STOP:
+                return
+            try:
+                self._serve(item)
+            except Exception as exc:  # never let one passage kill the service
+                self._publish_error(ServiceError(
+                    site_id=self.site.site_id, kind="simulation_failed",
+                    message=f"internal error: {type(exc).__name__}: {exc}", field=None,
+                    received_at=item.received_ns / 1e9,
+                ))
+
+    def _serve(self, item: Inbound) -> None:
+        try:
+            passage = WheelPassage.model_validate_json(item.payload)
+        except ValidationError as exc:
+            self._log_input(item, None)
+            self._publish_error(service_error_from_validation(
+                exc, item.payload, self.site.site_id, item.received_ns / 1e9))
+            return
+        self._log_input(item, passage)
+        try:
+            result = self.physics.simulate(passage)
+        except (ValueError, ArithmeticError, ValidationError) as exc:
+            self._publish_error(ServiceError(
+                site_id=self.site.site_id, kind="simulation_failed",
+                message=f"passage {passage.passage_id} could not be simulated: {exc}",
+                field=None, passage_id=passage.passage_id,
+                received_at=item.received_ns / 1e9,
+            ))
+            return
+        self._publish_result(result, item.received_mono)
+        self.passages_done += 1
+        if self.recorder is not None:
+            self.recorder.passage(result)
+            if result.summary.max_dent > 0.0:
+                self.recorder.dent(result.passage_id, self.physics.rail_state())
+
+    def _log_input(self, item: Inbound, passage: WheelPassage | None) -> None:
+        if self.recorder is None:
+            return
+        if passage is not None:
+            self.recorder.message(self.keys.passage, WheelPassage, item.payload, item.received_ns)
+            return
+        rejected = RejectedInput(
+            key=item.key, payload_base64=base64.b64encode(item.payload).decode("ascii"),
+            payload_text=item.payload.decode("utf-8", errors="replace"),
+        )
+        self.recorder.message(
+            f"{self.keys.passage}/rejected", RejectedInput,
+            rejected.model_dump_json().encode(), item.received_ns,
+        )
+
+    def _publish_error(self, error: ServiceError) -> None:
+        self.errors += 1
+        self.last_error = error
+        self._put(self.keys.error, self.keys.error, ServiceError, error.model_dump_json().encode())
+
+    def _put(self, key: str, topic: str, model: type[BaseModel], data: bytes) -> None:
+        self.session.put(
+            key, data, encoding=self._encodings[model],
+            congestion_control=zenoh.CongestionControl.BLOCK, express=True,
+        )
+        if self.recorder is not None:
+            self.recorder.message(topic, model, data, time.time_ns())
+
+    def _series(self, r: PassageResult, quantity: Literal["force", "indentation"],
+                first: int, last: int, chunk: int, chunks: int) -> bytes:
+        values = r.force if quantity == "force" else r.indentation
+        msg = PassageSeries.model_construct(
+            site_id=r.site_id, passage_id=r.passage_id, quantity=quantity,
+            unit="N" if quantity == "force" else "m", sample_rate=r.sample_rate,
+            t_start=r.t_start, speed=r.speed, chunk=chunk, chunks=chunks, first_index=first,
+            samples=len(r.x), x=r.x[first:last], values=values[first:last],
+        )
+        return msg.model_dump_json().encode()
+
+    def _publish_result(self, r: PassageResult, received_mono: float) -> None:
+        k = self.keys
+        pid = r.passage_id
+        result_data = r.model_dump_json().encode()
+        if self.pace == "fast":
+            n = len(r.x)
+            self._put(k.force(pid), f"{k.prefix}/force", PassageSeries,
+                      self._series(r, "force", 0, n, 0, 1))
+            self._put(k.indentation(pid), f"{k.prefix}/indentation", PassageSeries,
+                      self._series(r, "indentation", 0, n, 0, 1))
+            self._put(k.result(pid), f"{k.prefix}/result", PassageResult, result_data)
+            return
+        n = len(r.x)
+        per_chunk = max(1, round(self.chunk_period * r.sample_rate))
+        chunks = max(1, -(-n // per_chunk))
+        for c in range(chunks):
+            first, last = c * per_chunk, min(n, (c + 1) * per_chunk)
+            due = received_mono + (last - 1) / r.sample_rate
+            quantities: tuple[Literal["force", "indentation"], ...] = ("force", "indentation")
+            for quantity in quantities:
+                key = k.force(pid) if quantity == "force" else k.indentation(pid)
+                self._schedule(due, key, PassageSeries,
+                               self._series(r, quantity, first, last, c, chunks))
+        self._schedule(received_mono + r.site_length / r.speed, k.result(pid), PassageResult,
+                       result_data)
+
+    # --- pacer (realtime) --------------------------------------------------------------
+
+    def _schedule(self, due: float, key: str, model: type[BaseModel], data: bytes) -> None:
+        with self._due_cv:
+            self._due_seq += 1
+            heapq.heappush(self._due, _Due(due, self._due_seq, key, model, data))
+            self._due_cv.notify()
+
+    def _pace(self) -> None:
+        while True:
+            with self._due_cv:
+                while True:
+                    if self._pacer_stop and not self._due:
+                        return
+                    now = time.monotonic()
+                    if self._due and (self._due[0].due <= now or self._pacer_stop):
+                        item = heapq.heappop(self._due)
+                        break
+                    timeout = self._due[0].due - now if self._due else None
+                    self._due_cv.wait(timeout)
+            kind = self.keys.kind_of(item.key) or "output"
+            self._put(item.key, f"{self.keys.prefix}/{kind}", item.model, item.data)
