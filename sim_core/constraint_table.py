@@ -195,6 +195,34 @@ def table_eval(
     return val, der, i
 
 
+@numba.njit(cache=True, inline="always")
+def table_value(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    sl: NDArray[np.float64],
+    sr: NDArray[np.float64],
+    period: float,
+    xv: float,
+    hint: int,
+) -> tuple[float, int]:
+    """(y_C^k, index) at ``xv``: ``table_eval`` without the slope, for the hot loop."""
+    xw = xv
+    if period > 0.0:
+        xw = xv - np.floor((xv - x[0]) / period) * period
+    n = x.size
+    if xw <= x[0]:
+        return y[0], 0
+    if xw >= x[n - 1]:
+        return y[n - 1], n - 2
+    i = locate(x, xw, hint)
+    h = x[i + 1] - x[i]
+    t = (xw - x[i]) / h
+    u = 1.0 - t
+    # Hermite basis in factored form
+    val = u * u * ((1.0 + 2.0 * t) * y[i] + t * h * sr[i]) + t * t * ((3.0 - 2.0 * t) * y[i + 1] - u * h * sl[i + 1])
+    return val, i
+
+
 @numba.njit(cache=True)
 def evaluate_many(
     x: NDArray[np.float64],

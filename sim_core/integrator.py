@@ -41,7 +41,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sim_core import dop853
-from sim_core.constraint_table import locate, table_eval, wrap
+from sim_core.constraint_table import locate, table_eval, table_value, wrap
 from sim_core.contact_laws import HERTZ, JOHNSON, johnson_plastic_force
 
 # Modes.
@@ -144,7 +144,7 @@ def _force(delta: float, mode: int, par: NDArray[np.float64], scale: float) -> f
     return par[P_FY]
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _rhs(
     t: float,
     yc: float,
@@ -165,7 +165,11 @@ def _rhs(
     f = 0.0
     delta = np.nan
     if mode != FLIGHT:
-        ck, _, sc, hint = _constraint(tx, ty, tsl, tsr, tscale, period, par[P_SPEED] * t, hint)
+        if tscale.size > 0:
+            ck, _, sc, hint = _constraint(tx, ty, tsl, tsr, tscale, period, par[P_SPEED] * t, hint)
+        else:
+            ck, hint = table_value(tx, ty, tsl, tsr, period, par[P_SPEED] * t, hint)
+            sc = 1.0
         delta = -yc + ck + ym
         f = _force(delta, mode, par, sc)
     ac = (-par[P_LOAD] + f) / par[P_MASS]
@@ -426,9 +430,18 @@ def _flight_scan(
     while n > 0:
         sb = stack_s[n - 1]
         gb = stack_g[n - 1]
-        if gb > 0.0:
-            return _root(sa, ga, sb, gb, 0, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
         dt = (sb - sa) * h
+        if gb > 0.0:
+            # A crossing lies in [sa, sb] and none before sa. It is the only one if g
+            # is monotone there: g'(sa) > |g''|max·Δt. Otherwise halve and look left first.
+            _, rate_a = _delta_rate(sa, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
+            if rate_a > d2 * dt or (sb - sa) < min_ds or n >= stack_s.size - 1:
+                return _root(sa, ga, sb, gb, 0, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
+            sm = 0.5 * (sa + sb)
+            stack_s[n] = sm
+            stack_g[n] = _gval(sm, 0, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
+            n += 1
+            continue
         bound = max(ga, gb) + d2 * dt * dt / 8.0
         if bound < 0.0 or (sb - sa) < min_ds or n >= stack_s.size - 1:
             # proven free of contact (or unresolvably small): move on
@@ -580,6 +593,7 @@ def integrate(
     stack_s = np.empty(128)
     stack_g = np.empty(128)
     y = y0.copy()
+    y_prev = y0.copy()
     ynew = np.empty(4)
     status = OK
     hint = 0
@@ -645,12 +659,14 @@ def integrate(
             status = STEP_TOO_SMALL
             break
         # --- attempt steps until accepted
+        rejected = False
         while True:
             err, hint = _rk_step(t, y, h, mode, K, ynew, dstage, par, tx, ty, tsl, tsr, tscale, period, hint)
             nrhs += 12
             if err <= 1.0:
                 break
             nrej += 1
+            rejected = True
             factor = max(MIN_FACTOR, SAFETY * err ** (-1.0 / 8.0))
             h *= factor
             hit_kink = False
@@ -664,6 +680,8 @@ def integrate(
             factor = MAX_FACTOR
         else:
             factor = min(MAX_FACTOR, SAFETY * err ** (-1.0 / 8.0))
+        if rejected:
+            factor = min(1.0, factor)
         a0c = K[0, 1]
         a0m = K[0, 3]
         a1c = K[12, 1]
@@ -678,22 +696,31 @@ def integrate(
         else:
             dmin = dstage[12]
             dmax = dstage[12]
-            for q in range(1, 13):
-                dmin = min(dmin, dstage[q])
-                dmax = max(dmax, dstage[q])
+            amax_c = 0.0
+            amax_m = 0.0
+            for q in range(0, 13):
+                if q > 0:
+                    dmin = min(dmin, dstage[q])
+                    dmax = max(dmax, dstage[q])
+                amax_c = max(amax_c, abs(K[q, 1]))
+                amax_m = max(amax_m, abs(K[q, 3]))
+            # Between the stage times (largest gap 0.267·h) δ can leave the range of
+            # the stage values by at most |δ''|max·gap²/8: scan only if that reaches a threshold.
+            gap = 0.2667 * h
+            slack = 1.5 * (amax_c + amax_m + v * v * par[P_C2MAX]) * gap * gap / 8.0
             if mode == ELASTIC:
-                if dmin < 0.25 * dmax or dmin <= 0.0:
+                if dmin - slack <= 0.0:
                     s_l = _first_crossing_scan(1, t, h, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period, 16)
                     if s_l >= 0.0:
                         ev_s = s_l
                         ev_kind = EV_LOSS
-                if int(par[P_LAW]) != HERTZ and dmax > 0.9 * par[P_DY]:
+                if int(par[P_LAW]) != HERTZ and dmax + slack > par[P_DY]:
                     s_y = _first_crossing_scan(2, t, h, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period, 16)
                     if s_y >= 0.0 and (ev_s < 0.0 or s_y < ev_s):
                         ev_s = s_y
                         ev_kind = EV_YIELD
             else:
-                if dmin < 1.1 * par[P_DY]:
+                if dmin - slack < par[P_DY]:
                     s_u = _first_crossing_scan(3, t, h, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period, 16)
                     if s_u >= 0.0:
                         ev_s = s_u
@@ -753,21 +780,34 @@ def integrate(
             peak_delta = max(peak_delta, d_a, d_b)
             min_delta = min(min_delta, d_a, d_b)
             if (r_a > 0.0 and r_b < 0.0) or (r_a < 0.0 and r_b > 0.0):
-                # a local extremum of δ inside: bisect on dδ/dt
+                # a local extremum of δ inside: Illinois on dδ/dt (δ is flat there, so
+                # 1e-11 s in time is far below 1e-15 m in δ)
                 sa = 0.0
                 sb = 1.0
                 ra = r_a
+                rb = r_b
+                side = 0
+                sm = 0.5
                 for _ in range(60):
-                    sm = 0.5 * (sa + sb)
+                    sm = (sa * rb - sb * ra) / (rb - ra)
+                    if not (sa < sm < sb):
+                        sm = 0.5 * (sa + sb)
                     _, rm = _delta_rate(sm, t, hstep, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period)
                     if (rm > 0.0) == (ra > 0.0):
                         sa = sm
                         ra = rm
+                        if side == 1:
+                            rb *= 0.5
+                        side = 1
                     else:
                         sb = sm
-                    if (sb - sa) * hstep < 1e-13:
+                        rb = rm
+                        if side == -1:
+                            ra *= 0.5
+                        side = -1
+                    if (sb - sa) * hstep < 1e-11 or abs(rm) * hstep < 1e-16:
                         break
-                d_m, _ = _delta_rate(0.5 * (sa + sb), t, hstep, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period)
+                d_m, _ = _delta_rate(sm, t, hstep, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period)
                 peak_delta = max(peak_delta, d_m)
                 min_delta = min(min_delta, d_m)
             if mode == PLASTIC and track_dents:
@@ -796,6 +836,7 @@ def integrate(
         # --- advance
         t = tn
         for q in range(4):
+            y_prev[q] = y[q]
             y[q] = ynew[q]
         if hit_kink:
             kp += 1
@@ -829,7 +870,15 @@ def integrate(
             K[0, 2] = y[3]
             K[0, 3] = am
             if ev_kind == EV_CONTACT:
-                h = min(h, 1e-6)
+                # Hertz impact duration ~ 2.87·(m²/(C²·v_impact))^(1/5) (Johnson, Contact
+                # Mechanics §11.4): start with a small fraction of it.
+                _, rate = _delta_rate(1.0, t - hstep, hstep, y_prev, a0c, a0m, y, a1c, a1m, par, tx, ty, tsl, tsr, period)
+                rate = max(abs(rate), 1e-6)
+                tau = 2.87 * (par[P_MASS] ** 2 / (par[P_C] ** 2 * rate)) ** 0.2
+                h = min(h, 0.02 * tau)
+            elif ev_kind == EV_LOSS and par[P_COMPLIANT] == 0.0:
+                # ballistic flight: the parabola is exact, the scan finds the landing
+                h = t1 - t
             else:
                 h = max(h, 1e-9)
         else:
