@@ -121,8 +121,7 @@ class RerunRecording:
             (f"motion/y_c/{pid}", np.asarray(result.y_c) * 1e6, f"{pid} y_C [µm]"),
             (f"motion/y_ck/{pid}", np.asarray(result.y_ck) * 1e6, f"{pid} y_C^k [µm]"),
         )
-        for entity, values, name in series:
-            self.rec.log(entity, rr.SeriesLines(names=name), static=True)
+        for entity, values, _name in series:
             self.rec.send_columns(entity, indexes=index, columns=rr.Scalars.columns(scalars=values))
         if result.transitions:
             tx = np.array([tr.x if tr.x is not None else result.speed * tr.t

@@ -89,6 +89,9 @@ def run(args: argparse.Namespace) -> int:
     cfg = build_config(listen=listen, connect=args.connect, config_file=args.zenoh_config,
                        multicast_scouting=args.multicast_scouting)
     physics = make_physics(args.physics, site)
+    warm_up = getattr(physics, "warm_up", None)
+    if warm_up is not None:
+        print(f"railtwin serve: physics warmed up in {warm_up():.1f} s", flush=True)
     stamp = time.strftime("%Y%m%d-%H%M%S")
     stem = f"railtwin-{site.site_id}-{stamp}"
     mcap = None if args.no_mcap else McapLog(

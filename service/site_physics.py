@@ -20,7 +20,6 @@ from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
 from schemas.messages import PassageResult, RailState, WheelPassage
 from schemas.result import Summary, Transition
@@ -38,7 +37,7 @@ from schemas.site import SiteConfig
 from sim_core.constraint import tabulate_constraint
 from sim_core.constraint_table import ConstraintTable
 from sim_core.contact_laws import ContactLaw, ContactModel
-from sim_core.dents import dented_rail
+from sim_core.dents import dent_profile, dented_rail
 from sim_core.materials import Material, derive
 from sim_core.passage import Foundation, PassageOutput, PassageSpec, simulate_passage
 from sim_core.rail import RailProfile
@@ -131,6 +130,22 @@ class SitePhysics:
         return ContactModel(self.law, d.contact_coefficient, d.yield_force or 0.0,
                             d.yield_indentation or 0.0, self.material.johnson_coefficient)
 
+    def warm_up(self) -> float:
+        """Compile and exercise the physics once (no effect on the rail); returns seconds."""
+        start = time.perf_counter()
+        probe = WheelPassage(
+            passage_id="warm-up", train_id="warm-up", axle_index=0, side="right", timestamp=0.0,
+            speed=40.0, load=50000.0, mass=600.0, radius=0.46,
+        )
+        spec = PassageSpec(
+            mass=probe.mass, load=probe.load, speed=probe.speed,
+            duration=min(self.site.length, 0.5) / probe.speed,
+            sample_rate=self.site.output_sample_rate, contact=self.contact_model(probe),
+            foundation=self.foundation, initial=None, rtol=self.site.rtol,
+        )
+        simulate_passage(self._table(probe, self._rail), spec)
+        return time.perf_counter() - start
+
     def simulate(self, passage: WheelPassage) -> PassageResult:
         start = time.perf_counter()
         site = self.site
@@ -143,18 +158,19 @@ class SitePhysics:
         )
         out = simulate_passage(self._table(passage, rail), spec)
         max_dent = 0.0
-        if self.law == ContactLaw.HERTZ_PLASTIC:
-            after = dented_rail(rail.profile, out, contact)
-            if after is not None:
-                max_dent = _deepest(rail.profile, after, out)
-                self._rail = _Rail(after, rail.revision + 1)
-                self._tables.clear()
+        dents_x, depth = dent_profile(out, contact)
+        if depth.size and float(depth.max()) > 0.0:
+            max_dent = float(depth.max())
+            after = dented_rail(rail.profile, dents_x, depth, -TABLE_MARGIN,
+                                site.length + TABLE_MARGIN)
+            self._rail = _Rail(after, rail.revision + 1)
+            self._tables.clear()
         self._done += 1
         return self._result(passage, out, max_dent, rail.revision, time.perf_counter() - start)
 
     def _result(self, p: WheelPassage, out: PassageOutput, max_dent: float, revision: int,
                 wall: float) -> PassageResult:
-        s = summarize(out, max_dent)
+        s = summary_of(out, max_dent)
         return PassageResult(
             site_id=self.site.site_id, passage_id=p.passage_id, train_id=p.train_id,
             axle_index=p.axle_index, side=p.side, timestamp=p.timestamp, speed=p.speed,
@@ -163,11 +179,7 @@ class SitePhysics:
             indentation=out.delta.tolist(), y_c=out.y_c.tolist(), y_ck=out.y_ck.tolist(),
             transitions=[Transition(t=tr.t, kind=tr.kind, x=tr.x)  # type: ignore[arg-type]
                          for tr in out.transitions],
-            summary=Summary(
-                peak_force=s.peak_force, min_force=s.min_force, contact_losses=s.contact_losses,
-                first_loss_time=s.first_loss_time, time_out_of_contact=s.time_out_of_contact,
-                max_indentation=s.max_indentation, max_dent=s.max_dent,
-            ),
+            summary=s,
             rail_revision=revision, wall_time=wall, steps=out.steps,
         )
 
@@ -192,9 +204,11 @@ class SitePhysics:
             return state
 
 
-def _deepest(before: RailProfile, after: RailProfile, out: PassageOutput) -> float:
-    """Deepest new dent of one passage, where it pressed (``delta_c_x``)."""
-    x: NDArray[np.float64] = out.delta_c_x
-    if x.size == 0:
-        return 0.0
-    return max(0.0, float(np.max(before.height(x) - after.height(x))))
+def summary_of(out: PassageOutput, max_dent: float) -> Summary:
+    """The contract's summary fields of one passage."""
+    s = summarize(out, max_dent)
+    return Summary(
+        peak_force=s.peak_force, min_force=s.min_force, contact_losses=s.contact_losses,
+        first_loss_time=s.first_loss_time, time_out_of_contact=s.time_out_of_contact,
+        max_indentation=s.max_indentation, max_dent=s.max_dent,
+    )

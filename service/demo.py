@@ -1,0 +1,55 @@
+"""``make demo``: the twin on loopback, a sample train streamed to it, where the files are.
+
+    .venv/bin/python -m service.demo [--site examples/site.toml]
+        [--train recordings/samples/train_160kmh.json] [--recordings recordings]
+
+Starts ``railtwin serve`` in a child process on a free loopback port, streams
+the sample train at its real timing (one line per wheel: peak force, contact
+losses, dent), stops the service cleanly and prints where its MCAP log and
+Rerun recording are. No network beyond loopback, no viewer needed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+from pathlib import Path
+
+from service.service_process import ServiceProcess
+from service.site import load_site
+from service.zenoh_session import free_tcp_endpoint
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="railtwin-demo", description=__doc__.split("\n")[0])
+    p.add_argument("--site", type=Path, default=ROOT / "examples/site.toml")
+    p.add_argument("--train", type=Path, default=ROOT / "recordings/samples/train_160kmh.json")
+    p.add_argument("--recordings", type=Path, default=ROOT / "recordings")
+    args = p.parse_args(argv)
+    site = load_site(args.site)
+    endpoint = free_tcp_endpoint()
+    print(f"demo: starting railtwin serve for site {site.site_id!r} on {endpoint} "
+          "(the first start compiles the physics: allow a minute)", flush=True)
+    with ServiceProcess(args.site, listen=endpoint, recordings=args.recordings,
+                        start_timeout=300.0) as svc:
+        feeder = subprocess.run(
+            [sys.executable, "-m", "service.feeder", "--train", str(args.train),
+             "--site", site.site_id, "--connect", endpoint, "--timeout", "300"],
+            cwd=ROOT, check=False,
+        )
+    if svc.returncode != 0:
+        print(svc.output, file=sys.stderr)
+        return 1
+    print("\ndemo: done.", flush=True)
+    for f in svc.mcap_files:
+        print(f"demo: MCAP log (open in Foxglove):      {f}")
+    if svc.rrd_file is not None:
+        print(f"demo: Rerun recording (rerun FILE.rrd): {svc.rrd_file}")
+    return feeder.returncode
+
+
+if __name__ == "__main__":
+    sys.exit(main())
