@@ -89,11 +89,13 @@ class RunStats(StrictModel):
     """How the run went (not part of the physics; for benchmarks and diagnosis)."""
 
     steps: int | None = Field(
-        default=None, ge=0, description="accepted integrator steps, all passes"
+        default=None, ge=0, description="accepted integrator steps of the last pass"
     )
-    rejected_steps: int | None = Field(default=None, ge=0)
-    rhs_evaluations: int | None = Field(default=None, ge=0)
-    wall_time: NonNegative | None = Field(default=None, description="seconds")
+    rejected_steps: int | None = Field(default=None, ge=0, description="of the last pass")
+    rhs_evaluations: int | None = Field(default=None, ge=0, description="of the last pass")
+    wall_time: NonNegative | None = Field(
+        default=None, description="seconds for the whole run, all passes"
+    )
 
 
 class Result(StrictModel):

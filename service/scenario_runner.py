@@ -136,7 +136,9 @@ def run_scenario(scenario: sc.Scenario, progress: Progress | None = None) -> res
     if progress is not None:
         progress(0, scenario.passes)
         if reports_progress:
-            kwargs["progress"] = progress
+            report = progress
+            # sim_core calls progress(done, total, summary) after each passage
+            kwargs["progress"] = lambda done, total, *_: report(done, total)
     out = simulate_passes(wheel, rail, spec, **kwargs)
     if progress is not None and not reports_progress:
         progress(scenario.passes, scenario.passes)
@@ -167,11 +169,10 @@ def package_result(scenario: sc.Scenario, derived: Any, out: Any, wall_time: flo
     if out.rail_after is not None:
         x, y = _rail_samples(out.rail_after, last.x)
         rail_after = res.RailSamples(x=x, y=y)
-    passes = list(out.passes)
     stats = res.RunStats(
-        steps=sum(int(p.steps) for p in passes),
-        rejected_steps=sum(int(p.rejected_steps) for p in passes),
-        rhs_evaluations=sum(int(p.rhs_evaluations) for p in passes),
+        steps=int(last.steps),
+        rejected_steps=int(last.rejected_steps),
+        rhs_evaluations=int(last.rhs_evaluations),
         wall_time=max(0.0, float(wall_time)),
     )
     return res.Result(
