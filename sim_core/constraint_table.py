@@ -78,25 +78,34 @@ class ConstraintTable:
                 raise ValueError(f"constraint table: {name} has non-finite values")
         if not np.all(np.diff(self.x) > 0):
             raise ValueError("constraint table: node positions x must be strictly increasing")
-        if self.period < 0 or (self.period > 0 and abs(self.x[-1] - self.x[0] - self.period) > 1e-12 * max(1.0, self.period)):
+        if self.period < 0 or (
+            self.period > 0
+            and abs(self.x[-1] - self.x[0] - self.period) > 1e-12 * max(1.0, self.period)
+        ):
             raise ValueError("constraint table: a periodic table must span exactly one period")
         if self.stiffness_scale.size not in (0, n) or not np.all(self.stiffness_scale > 0):
             raise ValueError("constraint table: stiffness_scale must be empty or positive per node")
         if not self.resolution > 0:
-            raise ValueError(f"constraint table: resolution must be positive, got {self.resolution}")
+            raise ValueError(
+                f"constraint table: resolution must be positive, got {self.resolution}"
+            )
 
     def evaluate(self, xq: NDArray[np.float64]) -> NDArray[np.float64]:
         """y_C^k at the positions ``xq`` (vectorised)."""
         xq = np.asarray(xq, dtype=np.float64)
         out = np.empty(xq.shape)
-        evaluate_many(self.x, self.y, self.slope_left, self.slope_right, self.period, xq.ravel(), out.ravel())
+        evaluate_many(
+            self.x, self.y, self.slope_left, self.slope_right, self.period, xq.ravel(), out.ravel()
+        )
         return out
 
     def slope(self, xq: NDArray[np.float64]) -> NDArray[np.float64]:
         """dy_C^k/dx at ``xq`` (right-sided at kinks)."""
         xq = np.asarray(xq, dtype=np.float64)
         out = np.empty(xq.shape)
-        slope_many(self.x, self.y, self.slope_left, self.slope_right, self.period, xq.ravel(), out.ravel())
+        slope_many(
+            self.x, self.y, self.slope_left, self.slope_right, self.period, xq.ravel(), out.ravel()
+        )
         return out
 
     def contact_point(self, xq: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -190,8 +199,18 @@ def table_eval(
     t3 = t2 * t
     m0 = sr[i] * h
     m1 = sl[i + 1] * h
-    val = (2 * t3 - 3 * t2 + 1) * y[i] + (t3 - 2 * t2 + t) * m0 + (-2 * t3 + 3 * t2) * y[i + 1] + (t3 - t2) * m1
-    der = ((6 * t2 - 6 * t) * y[i] + (3 * t2 - 4 * t + 1) * m0 + (-6 * t2 + 6 * t) * y[i + 1] + (3 * t2 - 2 * t) * m1) / h
+    val = (
+        (2 * t3 - 3 * t2 + 1) * y[i]
+        + (t3 - 2 * t2 + t) * m0
+        + (-2 * t3 + 3 * t2) * y[i + 1]
+        + (t3 - t2) * m1
+    )
+    der = (
+        (6 * t2 - 6 * t) * y[i]
+        + (3 * t2 - 4 * t + 1) * m0
+        + (-6 * t2 + 6 * t) * y[i + 1]
+        + (3 * t2 - 2 * t) * m1
+    ) / h
     return val, der, i
 
 
@@ -219,7 +238,9 @@ def table_value(
     t = (xw - x[i]) / h
     u = 1.0 - t
     # Hermite basis in factored form
-    val = u * u * ((1.0 + 2.0 * t) * y[i] + t * h * sr[i]) + t * t * ((3.0 - 2.0 * t) * y[i + 1] - u * h * sl[i + 1])
+    val = u * u * ((1.0 + 2.0 * t) * y[i] + t * h * sr[i]) + t * t * (
+        (3.0 - 2.0 * t) * y[i + 1] - u * h * sl[i + 1]
+    )
     return val, i
 
 

@@ -313,10 +313,7 @@ def _root(
     for _ in range(200):
         if sb - sa <= tol:
             break
-        if gb != ga:
-            sm = (sa * gb - sb * ga) / (gb - ga)
-        else:
-            sm = 0.5 * (sa + sb)
+        sm = (sa * gb - sb * ga) / (gb - ga) if gb != ga else 0.5 * (sa + sb)
         if not (sa < sm < sb):
             sm = 0.5 * (sa + sb)
         gm = _gval(sm, kind, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
@@ -364,7 +361,27 @@ def _first_crossing_scan(
         sb = j / n_points
         gb = _gval(sb, kind, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
         if gb > 0.0:
-            return _root(sa, ga, sb, gb, kind, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
+            return _root(
+                sa,
+                ga,
+                sb,
+                gb,
+                kind,
+                t,
+                h,
+                y0,
+                a0c,
+                a0m,
+                y1,
+                a1c,
+                a1m,
+                par,
+                tx,
+                ty,
+                tsl,
+                tsr,
+                period,
+            )
         sa = sb
         ga = gb
     return -1.0
@@ -399,60 +416,78 @@ def _flight_scan(
     d2 = par[P_LOAD] / par[P_MASS] + v * v * par[P_C2MAX]
     if par[P_COMPLIANT] > 0.0:
         d2 += 2.0 * max(abs(a0m), abs(a1m)) + 1e-12
-    # initial split points: 0, kinks inside, 1
-    n = 0
     x0 = v * t
     x1 = v * (t + h)
-    # push in reverse order so the leftmost interval is popped first
-    # collect kink fractions
-    nk = 0
+    lo = 0
+    hi = 0
     if kinks.size > 0:
         lo = np.searchsorted(kinks, x0, side="right")
         hi = np.searchsorted(kinks, x1, side="left")
-        nk = hi - lo
-    else:
-        lo = 0
-    g1 = _gval(1.0, 0, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
-    stack_s[n] = 1.0
-    stack_g[n] = g1
-    n += 1
-    for j in range(nk - 1, -1, -1):
-        sk = (kinks[lo + j] / v - t) / h
-        if 0.0 < sk < 1.0:
-            stack_s[n] = sk
-            stack_g[n] = _gval(sk, 0, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
-            n += 1
+    min_ds = 1e-13 / h
+    cap = stack_s.size
     sa = 0.0
     ga = _gval(0.0, 0, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
     if ga > 0.0:
         ga = 0.0
-    min_ds = 1e-13 / h
-    while n > 0:
-        sb = stack_s[n - 1]
-        gb = stack_g[n - 1]
-        dt = (sb - sa) * h
-        if gb > 0.0:
-            # A crossing lies in [sa, sb] and none before sa. It is the only one if g
-            # is monotone there: g'(sa) > |g''|max·Δt. Otherwise halve and look left first.
-            _, rate_a = _delta_rate(sa, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
-            if rate_a > d2 * dt or (sb - sa) < min_ds or n >= stack_s.size - 1:
-                return _root(sa, ga, sb, gb, 0, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
+    # segments between kinks, left to right; inside each, depth-first halving
+    for j in range(lo, hi + 1):
+        if j < hi:
+            s_end = (kinks[j] / v - t) / h
+            if not (sa < s_end < 1.0):
+                continue
+        else:
+            s_end = 1.0
+        n = 1
+        stack_s[0] = s_end
+        stack_g[0] = _gval(
+            s_end, 0, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period
+        )
+        while n > 0:
+            sb = stack_s[n - 1]
+            gb = stack_g[n - 1]
+            dt = (sb - sa) * h
+            if gb > 0.0:
+                # A crossing lies in [sa, sb] and none before sa. It is the only one if g
+                # is monotone there: g'(sa) > |g''|max·Δt. Otherwise halve and look left first.
+                _, rate_a = _delta_rate(
+                    sa, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period
+                )
+                if rate_a > d2 * dt or (sb - sa) < min_ds or n >= cap:
+                    return _root(
+                        sa,
+                        ga,
+                        sb,
+                        gb,
+                        0,
+                        t,
+                        h,
+                        y0,
+                        a0c,
+                        a0m,
+                        y1,
+                        a1c,
+                        a1m,
+                        par,
+                        tx,
+                        ty,
+                        tsl,
+                        tsr,
+                        period,
+                    )
+            else:
+                bound = max(ga, gb) + d2 * dt * dt / 8.0
+                if bound < 0.0 or (sb - sa) < min_ds or n >= cap:
+                    # proven free of contact (or unresolvably small): move on
+                    sa = sb
+                    ga = gb
+                    n -= 1
+                    continue
             sm = 0.5 * (sa + sb)
             stack_s[n] = sm
-            stack_g[n] = _gval(sm, 0, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
+            stack_g[n] = _gval(
+                sm, 0, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period
+            )
             n += 1
-            continue
-        bound = max(ga, gb) + d2 * dt * dt / 8.0
-        if bound < 0.0 or (sb - sa) < min_ds or n >= stack_s.size - 1:
-            # proven free of contact (or unresolvably small): move on
-            sa = sb
-            ga = gb
-            n -= 1
-            continue
-        sm = 0.5 * (sa + sb)
-        stack_s[n] = sm
-        stack_g[n] = _gval(sm, 0, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
-        n += 1
     return -1.0
 
 
@@ -485,7 +520,22 @@ def _rk_step(
             for q in range(s):
                 acc += _A[s, q] * K[q, j]
             tmp[j] = y[j] + h * acc
-        ac, am, d, hint = _rhs(t + _C[s] * h, tmp[0], tmp[1], tmp[2], tmp[3], mode, par, tx, ty, tsl, tsr, tscale, period, hint)
+        ac, am, d, hint = _rhs(
+            t + _C[s] * h,
+            tmp[0],
+            tmp[1],
+            tmp[2],
+            tmp[3],
+            mode,
+            par,
+            tx,
+            ty,
+            tsl,
+            tsr,
+            tscale,
+            period,
+            hint,
+        )
         K[s, 0] = tmp[1]
         K[s, 1] = ac
         K[s, 2] = tmp[3]
@@ -496,7 +546,9 @@ def _rk_step(
         for q in range(12):
             acc += _B[q] * K[q, j]
         ynew[j] = y[j] + h * acc
-    ac, am, d, hint = _rhs(t + h, ynew[0], ynew[1], ynew[2], ynew[3], mode, par, tx, ty, tsl, tsr, tscale, period, hint)
+    ac, am, d, hint = _rhs(
+        t + h, ynew[0], ynew[1], ynew[2], ynew[3], mode, par, tx, ty, tsl, tsr, tscale, period, hint
+    )
     K[12, 0] = ynew[1]
     K[12, 1] = ac
     K[12, 2] = ynew[3]
@@ -572,7 +624,7 @@ def integrate(
     Returns:
         (status, samples[n, N_COLS], transition times, transition codes,
          extrema [peak δ, min δ in contact, time out of contact],
-         dent pairs [m, 2] (x_D, δ) recorded while plastic,
+         dent records [m, 3] (t, x_D, δ) taken while plastic,
          stats [steps, rejected, rhs evaluations], final state)
     """
     v = par[P_SPEED]
@@ -583,7 +635,7 @@ def integrate(
     tr_k = np.empty(cap_tr, dtype=np.int64)
     n_tr = 0
     cap_dent = 1024
-    dents = np.empty((cap_dent, 2))
+    dents = np.empty((cap_dent, 3))
     n_dent = 0
     track_dents = par[P_TRACK_DENTS] > 0.0
     dent_dx = par[P_DENT_DX]
@@ -601,7 +653,9 @@ def integrate(
     ck0, _, _, hint = _constraint(tx, ty, tsl, tsr, tscale, period, v * t, hint)
     delta0 = -y[0] + ck0 + y[2]
     mode = _mode_of(delta0, par)
-    ac, am, _, hint = _rhs(t, y[0], y[1], y[2], y[3], mode, par, tx, ty, tsl, tsr, tscale, period, hint)
+    ac, am, _, hint = _rhs(
+        t, y[0], y[1], y[2], y[3], mode, par, tx, ty, tsl, tsr, tscale, period, hint
+    )
     K[0, 0] = y[1]
     K[0, 1] = ac
     K[0, 2] = y[3]
@@ -661,7 +715,9 @@ def integrate(
         # --- attempt steps until accepted
         rejected = False
         while True:
-            err, hint = _rk_step(t, y, h, mode, K, ynew, dstage, par, tx, ty, tsl, tsr, tscale, period, hint)
+            err, hint = _rk_step(
+                t, y, h, mode, K, ynew, dstage, par, tx, ty, tsl, tsr, tscale, period, hint
+            )
             nrhs += 12
             if err <= 1.0:
                 break
@@ -676,10 +732,7 @@ def integrate(
         if status != OK:
             break
         nsteps += 1
-        if err == 0.0:
-            factor = MAX_FACTOR
-        else:
-            factor = min(MAX_FACTOR, SAFETY * err ** (-1.0 / 8.0))
+        factor = MAX_FACTOR if err == 0.0 else min(MAX_FACTOR, SAFETY * err ** (-1.0 / 8.0))
         if rejected:
             factor = min(1.0, factor)
         a0c = K[0, 1]
@@ -690,7 +743,25 @@ def integrate(
         ev_s = -1.0
         ev_kind = -1
         if mode == FLIGHT:
-            ev_s = _flight_scan(t, h, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period, kinks, stack_s, stack_g)
+            ev_s = _flight_scan(
+                t,
+                h,
+                y,
+                a0c,
+                a0m,
+                ynew,
+                a1c,
+                a1m,
+                par,
+                tx,
+                ty,
+                tsl,
+                tsr,
+                period,
+                kinks,
+                stack_s,
+                stack_g,
+            )
             if ev_s >= 0.0:
                 ev_kind = EV_CONTACT
         else:
@@ -710,24 +781,32 @@ def integrate(
             slack = 1.5 * (amax_c + amax_m + v * v * par[P_C2MAX]) * gap * gap / 8.0
             if mode == ELASTIC:
                 if dmin - slack <= 0.0:
-                    s_l = _first_crossing_scan(1, t, h, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period, 16)
+                    s_l = _first_crossing_scan(
+                        1, t, h, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period, 16
+                    )
                     if s_l >= 0.0:
                         ev_s = s_l
                         ev_kind = EV_LOSS
                 if int(par[P_LAW]) != HERTZ and dmax + slack > par[P_DY]:
-                    s_y = _first_crossing_scan(2, t, h, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period, 16)
+                    s_y = _first_crossing_scan(
+                        2, t, h, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period, 16
+                    )
                     if s_y >= 0.0 and (ev_s < 0.0 or s_y < ev_s):
                         ev_s = s_y
                         ev_kind = EV_YIELD
             else:
                 if dmin - slack < par[P_DY]:
-                    s_u = _first_crossing_scan(3, t, h, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period, 16)
+                    s_u = _first_crossing_scan(
+                        3, t, h, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period, 16
+                    )
                     if s_u >= 0.0:
                         ev_s = s_u
                         ev_kind = EV_UNYIELD
         if ev_kind >= 0:
             # grazing test: the rate of δ at the root must point the right way
-            _, rate = _delta_rate(ev_s, t, h, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period)
+            _, rate = _delta_rate(
+                ev_s, t, h, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period
+            )
             if (ev_kind == EV_LOSS and rate >= 0.0) or (ev_kind == EV_CONTACT and rate <= 0.0):
                 ev_kind = -1
         hstep = h
@@ -737,7 +816,9 @@ def integrate(
                 # redo the step so that it ends exactly on the event
                 for q in range(4):
                     K1[0, q] = K[0, q]
-                _, hint = _rk_step(t, y, hstep, mode, K1, ynew, dstage, par, tx, ty, tsl, tsr, tscale, period, hint)
+                _, hint = _rk_step(
+                    t, y, hstep, mode, K1, ynew, dstage, par, tx, ty, tsl, tsr, tscale, period, hint
+                )
                 nrhs += 12
                 for q in range(13):
                     for j in range(4):
@@ -775,8 +856,12 @@ def integrate(
         if mode == FLIGHT:
             t_flight += hstep
         elif hstep > 0.0:
-            d_a, r_a = _delta_rate(0.0, t, hstep, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period)
-            d_b, r_b = _delta_rate(1.0, t, hstep, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period)
+            d_a, r_a = _delta_rate(
+                0.0, t, hstep, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period
+            )
+            d_b, r_b = _delta_rate(
+                1.0, t, hstep, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period
+            )
             peak_delta = max(peak_delta, d_a, d_b)
             min_delta = min(min_delta, d_a, d_b)
             if (r_a > 0.0 and r_b < 0.0) or (r_a < 0.0 and r_b > 0.0):
@@ -792,7 +877,9 @@ def integrate(
                     sm = (sa * rb - sb * ra) / (rb - ra)
                     if not (sa < sm < sb):
                         sm = 0.5 * (sa + sb)
-                    _, rm = _delta_rate(sm, t, hstep, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period)
+                    _, rm = _delta_rate(
+                        sm, t, hstep, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period
+                    )
                     if (rm > 0.0) == (ra > 0.0):
                         sa = sm
                         ra = rm
@@ -807,19 +894,23 @@ def integrate(
                         side = -1
                     if (sb - sa) * hstep < 1e-11 or abs(rm) * hstep < 1e-16:
                         break
-                d_m, _ = _delta_rate(sm, t, hstep, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period)
+                d_m, _ = _delta_rate(
+                    sm, t, hstep, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period
+                )
                 peak_delta = max(peak_delta, d_m)
                 min_delta = min(min_delta, d_m)
             if mode == PLASTIC and track_dents:
-                npts = int(math.ceil(v * hstep / dent_dx)) + 1
+                npts = math.ceil(v * hstep / dent_dx) + 1
                 if n_dent + npts + 1 >= cap_dent:
                     cap_dent = 2 * (n_dent + npts + 1)
-                    nd = np.empty((cap_dent, 2))
+                    nd = np.empty((cap_dent, 3))
                     nd[:n_dent] = dents[:n_dent]
                     dents = nd
                 for q in range(npts + 1):
                     s = q / npts
-                    d_q, _ = _delta_rate(s, t, hstep, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period)
+                    d_q, _ = _delta_rate(
+                        s, t, hstep, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period
+                    )
                     xq = v * (t + s * hstep)
                     xw, shift = wrap(xq, tx[0], period)
                     j = locate(tx, xw, hint)
@@ -830,8 +921,9 @@ def integrate(
                     else:
                         u = (xw - tx[j]) / (tx[j + 1] - tx[j])
                         xd = tcx[j] + u * (tcx[j + 1] - tcx[j])
-                    dents[n_dent, 0] = xd + shift
-                    dents[n_dent, 1] = d_q
+                    dents[n_dent, 0] = t + s * hstep
+                    dents[n_dent, 1] = xd + shift
+                    dents[n_dent, 2] = d_q
                     n_dent += 1
         # --- advance
         t = tn
@@ -863,7 +955,9 @@ def integrate(
                 mode = PLASTIC
             else:
                 mode = ELASTIC
-            ac, am, _, hint = _rhs(t, y[0], y[1], y[2], y[3], mode, par, tx, ty, tsl, tsr, tscale, period, hint)
+            ac, am, _, hint = _rhs(
+                t, y[0], y[1], y[2], y[3], mode, par, tx, ty, tsl, tsr, tscale, period, hint
+            )
             nrhs += 1
             K[0, 0] = y[1]
             K[0, 1] = ac
@@ -872,7 +966,23 @@ def integrate(
             if ev_kind == EV_CONTACT:
                 # Hertz impact duration ~ 2.87·(m²/(C²·v_impact))^(1/5) (Johnson, Contact
                 # Mechanics §11.4): start with a small fraction of it.
-                _, rate = _delta_rate(1.0, t - hstep, hstep, y_prev, a0c, a0m, y, a1c, a1m, par, tx, ty, tsl, tsr, period)
+                _, rate = _delta_rate(
+                    1.0,
+                    t - hstep,
+                    hstep,
+                    y_prev,
+                    a0c,
+                    a0m,
+                    y,
+                    a1c,
+                    a1m,
+                    par,
+                    tx,
+                    ty,
+                    tsl,
+                    tsr,
+                    period,
+                )
                 rate = max(abs(rate), 1e-6)
                 tau = 2.87 * (par[P_MASS] ** 2 / (par[P_C] ** 2 * rate)) ** 0.2
                 h = min(h, 0.02 * tau)
@@ -886,5 +996,14 @@ def integrate(
                 K[0, q] = K[12, q]
             h = h * factor
     stats = np.array([nsteps, nrej, nrhs], dtype=np.int64)
-    extrema = np.array([peak_delta, min_delta, t_flight])
-    return status, samples, tr_t[:n_tr].copy(), tr_k[:n_tr].copy(), extrema, dents[:n_dent].copy(), stats, y
+    extrema = np.array([peak_delta, min_delta, t_flight, t, float(mode)])
+    return (
+        status,
+        samples,
+        tr_t[:n_tr].copy(),
+        tr_k[:n_tr].copy(),
+        extrema,
+        dents[:n_dent].copy(),
+        stats,
+        y,
+    )

@@ -38,15 +38,21 @@ class Material:
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.youngs_modulus) and self.youngs_modulus > 0):
-            raise ValueError(f"youngs_modulus must be a positive finite number, got {self.youngs_modulus!r}")
+            raise ValueError(
+                f"youngs_modulus must be a positive finite number, got {self.youngs_modulus!r}"
+            )
         if not (math.isfinite(self.poisson_ratio) and -1.0 < self.poisson_ratio < 0.5):
             raise ValueError(f"poisson_ratio must lie in (-1, 0.5), got {self.poisson_ratio!r}")
         if self.yield_stress is not None and not (
             math.isfinite(self.yield_stress) and self.yield_stress > 0
         ):
-            raise ValueError(f"yield_stress must be positive and finite or None, got {self.yield_stress!r}")
+            raise ValueError(
+                f"yield_stress must be positive and finite or None, got {self.yield_stress!r}"
+            )
         if not (math.isfinite(self.johnson_coefficient) and self.johnson_coefficient > 0):
-            raise ValueError(f"johnson_coefficient must be positive, got {self.johnson_coefficient!r}")
+            raise ValueError(
+                f"johnson_coefficient must be positive, got {self.johnson_coefficient!r}"
+            )
 
 
 def effective_modulus(material: Material) -> float:
@@ -61,7 +67,9 @@ def hertz_coefficient(e_star: float, radius: float) -> float:
 
 def yield_force(e_star: float, radius: float, yield_stress: float, theta_y: float) -> float:
     """F_Y = π·(3π/4)²·(ϑ_Y·Y)³·R*²/E*² (MODEL.md (4.2), with the leading π)."""
-    return math.pi * (3.0 * math.pi / 4.0) ** 2 * (theta_y * yield_stress) ** 3 * radius**2 / e_star**2
+    return (
+        math.pi * (3.0 * math.pi / 4.0) ** 2 * (theta_y * yield_stress) ** 3 * radius**2 / e_star**2
+    )
 
 
 @dataclass(frozen=True)

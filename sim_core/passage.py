@@ -35,6 +35,9 @@ from sim_core import integrator as integ
 from sim_core.constraint_table import ConstraintTable
 from sim_core.contact_laws import ContactLaw, ContactModel
 
+DENT_SPACING = 2e-5
+"""Wheel travel (m) between records of the plastic indentation (dents are mm to cm long)."""
+
 YIELD_HYSTERESIS = 1e-14
 """Width (m) of the elastic/plastic switch's hysteresis (MODEL.md §5)."""
 
@@ -60,7 +63,9 @@ class Foundation:
                 if not (math.isfinite(v) and v > 0):
                     raise ValueError(f"compliant foundation: {name} must be positive, got {v!r}")
             if not (math.isfinite(self.damping) and self.damping >= 0):
-                raise ValueError(f"compliant foundation: damping must be >= 0, got {self.damping!r}")
+                raise ValueError(
+                    f"compliant foundation: damping must be >= 0, got {self.damping!r}"
+                )
 
     @classmethod
     def rigid(cls) -> Foundation:
@@ -87,7 +92,9 @@ class InitialState:
     def __post_init__(self) -> None:
         for name in ("y_c", "v_c", "y_m", "v_m"):
             if not math.isfinite(getattr(self, name)):
-                raise ValueError(f"initial state: {name} must be finite, got {getattr(self, name)!r}")
+                raise ValueError(
+                    f"initial state: {name} must be finite, got {getattr(self, name)!r}"
+                )
 
 
 @dataclass(frozen=True)
@@ -134,9 +141,10 @@ class Transition:
 class PassageOutput:
     """Samples at ``sample_rate`` plus the exact transition list of one passage.
 
-    ``delta_c``/``delta_c_x``: the largest indentation reached while the
-    contact point was at each position (only where it exceeded δ_Y; empty for
-    elastic passages) — the input of the dent computation (``sim_core.dents``).
+    ``delta_c_t``, ``delta_c_x``, ``delta_c``: the indentation δ recorded at
+    the contact point x_D at times t, densely (every ``dent_spacing`` of
+    travel) while the contact was plastic; empty for elastic passages. The
+    input of the dent computation (``sim_core.dents``).
     """
 
     t: NDArray[np.float64]
@@ -150,6 +158,7 @@ class PassageOutput:
     force: NDArray[np.float64]
     in_contact: NDArray[np.bool_]
     transitions: tuple[Transition, ...]
+    delta_c_t: NDArray[np.float64]
     delta_c_x: NDArray[np.float64]
     delta_c: NDArray[np.float64]
     steps: int
@@ -219,14 +228,13 @@ def simulate_passage(
 
     ``track_dents`` (default: on for the Hertzian–perfectly plastic law)
     records the largest indentation at each contact point while plastic, every
-    ``dent_spacing`` metres of wheel travel (default: 1/4 of the table's
-    resolution, at most 0.05 mm).
+    ``dent_spacing`` metres of wheel travel (default ``DENT_SPACING``).
     """
     law = spec.contact.law
     if track_dents is None:
         track_dents = law == ContactLaw.HERTZ_PLASTIC
     if dent_spacing is None:
-        dent_spacing = min(table.resolution / 4.0, 5e-5)
+        dent_spacing = DENT_SPACING
     v = spec.speed
     t0 = spec.t0
     t1 = t0 + spec.duration
@@ -241,7 +249,12 @@ def simulate_passage(
     ym0 = -spec.load / spec.foundation.stiffness if compliant else 0.0
     init = spec.initial or InitialState()
     y0 = np.array(
-        [ck0 + ym0 - d0 + init.y_c, init.v_c, (ym0 + init.y_m) if compliant else 0.0, init.v_m if compliant else 0.0]
+        [
+            ck0 + ym0 - d0 + init.y_c,
+            init.v_c,
+            (ym0 + init.y_m) if compliant else 0.0,
+            init.v_m if compliant else 0.0,
+        ]
     )
     if not compliant and (init.y_m != 0.0 or init.v_m != 0.0):
         raise ValueError("initial y_m/v_m given for a rigid foundation")
@@ -266,7 +279,7 @@ def simulate_passage(
     par[integ.P_C2MAX] = _second_derivative_bound(table)
     par[integ.P_DENT_DX] = dent_spacing
     par[integ.P_TRACK_DENTS] = 1.0 if track_dents else 0.0
-    n_samples = int(math.floor(spec.duration * spec.sample_rate * (1 + 1e-12))) + 1
+    n_samples = math.floor(spec.duration * spec.sample_rate * (1 + 1e-12)) + 1
     sample_t = t0 + np.arange(n_samples) / spec.sample_rate
     kinks = table.kinks_between(v * t0 - 1e-12, v * t1 + table.resolution)
     status, samples, tr_t, tr_k, extrema, dents, stats, _ = integ.integrate(
@@ -286,21 +299,24 @@ def simulate_passage(
         max_steps,
     )
     if status == integ.STEP_TOO_SMALL:
-        raise IntegrationError("the step size fell below 1e-15 s: the solution is not resolvable here")
+        raise IntegrationError(
+            f"the step size fell below 1e-15 s at t = {extrema[3]:.9g} s (x = {v * extrema[3]:.6g} m, "
+            f"mode {('flight', 'elastic', 'plastic')[int(extrema[4])]}): the solution is not resolvable there"
+        )
     if status == integ.TOO_MANY_STEPS:
         raise IntegrationError(f"more than {max_steps} steps: raise max_steps or relax rtol")
     s = samples
-    peak_delta, min_delta, t_flight = (float(e) for e in extrema)
+    peak_delta, min_delta, t_flight = (float(e) for e in extrema[:3])
     transitions = tuple(
-        Transition(float(tt), TRANSITION_KINDS[int(kk)], float(tt * v)) for tt, kk in zip(tr_t, tr_k, strict=True)
+        Transition(float(tt), TRANSITION_KINDS[int(kk)], float(tt * v))
+        for tt, kk in zip(tr_t, tr_k, strict=True)
     )
     ever_lost = any(tr.kind == "loss" for tr in transitions) or t_flight > 0.0
     min_force = 0.0 if ever_lost else float(spec.contact.force(min_delta)[0])
     if dents.shape[0] and law == ContactLaw.HERTZ_PLASTIC:
-        dent_x, dent_d = dents[:, 0], dents[:, 1]
+        dent_t, dent_x, dent_d = dents[:, 0], dents[:, 1], dents[:, 2]
     else:
-        dent_x = np.empty(0)
-        dent_d = np.empty(0)
+        dent_t = dent_x = dent_d = np.empty(0)
     return PassageOutput(
         t=s[:, integ.S_T],
         x=s[:, integ.S_X],
@@ -313,6 +329,7 @@ def simulate_passage(
         force=s[:, integ.S_FORCE],
         in_contact=s[:, integ.S_CONTACT] > 0.5,
         transitions=transitions,
+        delta_c_t=dent_t,
         delta_c_x=dent_x,
         delta_c=dent_d,
         steps=int(stats[0]),
