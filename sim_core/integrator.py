@@ -99,6 +99,11 @@ N_COLS = 10
 SAFETY = 0.9
 MIN_FACTOR = 0.2
 MAX_FACTOR = 10.0
+EVENT_OFFSET = 1e-15
+"""How far (m) past a switching surface the state is put after an event."""
+
+IMPACT_FIRST_STEP = 0.008
+"""First step after a landing, as a fraction of the Hertz impact duration."""
 
 _A = dop853.A
 _B = dop853.B
@@ -406,8 +411,9 @@ def _flight_scan(
     kinks: NDArray[np.float64],
     stack_s: NDArray[np.float64],
     stack_g: NDArray[np.float64],
+    s_start: float,
 ) -> float:
-    """First return of contact in the step (fraction), or -1: bound-based bisection.
+    """First return of contact in the step after fraction ``s_start``, or -1.
 
     On [sa, sb] with g = δ <= 0 at both ends and |δ''| <= D2, δ <= max(ga, gb) + D2·(Δt)²/8.
     Kinks of the constraint break the bound on δ'' and are inserted as split points.
@@ -416,7 +422,7 @@ def _flight_scan(
     d2 = par[P_LOAD] / par[P_MASS] + v * v * par[P_C2MAX]
     if par[P_COMPLIANT] > 0.0:
         d2 += 2.0 * max(abs(a0m), abs(a1m)) + 1e-12
-    x0 = v * t
+    x0 = v * (t + s_start * h)
     x1 = v * (t + h)
     lo = 0
     hi = 0
@@ -425,8 +431,8 @@ def _flight_scan(
         hi = np.searchsorted(kinks, x1, side="left")
     min_ds = 1e-13 / h
     cap = stack_s.size
-    sa = 0.0
-    ga = _gval(0.0, 0, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
+    sa = s_start
+    ga = _gval(sa, 0, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
     if ga > 0.0:
         ga = 0.0
     # segments between kinks, left to right; inside each, depth-first halving
@@ -500,6 +506,7 @@ def _rk_step(
     K: NDArray[np.float64],
     ynew: NDArray[np.float64],
     dstage: NDArray[np.float64],
+    tmp: NDArray[np.float64],
     par: NDArray[np.float64],
     tx: NDArray[np.float64],
     ty: NDArray[np.float64],
@@ -513,7 +520,6 @@ def _rk_step(
 
     K rows hold (v_C, a_C, v_M, a_M); dstage[i] is δ at stage i (NaN in flight).
     """
-    tmp = np.empty(4)
     for s in range(1, 12):
         for j in range(4):
             acc = 0.0
@@ -585,7 +591,7 @@ def _mode_of(delta: float, par: NDArray[np.float64]) -> int:
     return ELASTIC
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def integrate(
     tx: NDArray[np.float64],
     ty: NDArray[np.float64],
@@ -647,6 +653,7 @@ def integrate(
     y = y0.copy()
     y_prev = y0.copy()
     ynew = np.empty(4)
+    tmp = np.empty(4)
     status = OK
     hint = 0
     t = t0
@@ -714,9 +721,12 @@ def integrate(
             break
         # --- attempt steps until accepted
         rejected = False
+        if mode != FLIGHT:
+            ck_start, hint = table_value(tx, ty, tsl, tsr, period, v * t, hint)
+            dstage[0] = -y[0] + ck_start + y[2]
         while True:
             err, hint = _rk_step(
-                t, y, h, mode, K, ynew, dstage, par, tx, ty, tsl, tsr, tscale, period, hint
+                t, y, h, mode, K, ynew, dstage, tmp, par, tx, ty, tsl, tsr, tscale, period, hint
             )
             nrhs += 12
             if err <= 1.0:
@@ -724,6 +734,19 @@ def integrate(
             nrej += 1
             rejected = True
             factor = max(MIN_FACTOR, SAFETY * err ** (-1.0 / 8.0))
+            if mode == ELASTIC and dstage[12] < 0.0:
+                # The attempt ran past a loss of contact, where F ~ δ^(3/2) stops being
+                # smooth and the error estimate explodes. Aim the next attempt just short
+                # of the crossing the stage values bracket (linear between the last stage
+                # with δ > 0 and the end) instead of shrinking blindly.
+                c_pos = 0.0
+                d_pos = dstage[0] if dstage[0] > 0.0 else 0.0
+                for q in range(1, 12):
+                    if dstage[q] > 0.0 and _C[q] > c_pos:
+                        c_pos = _C[q]
+                        d_pos = dstage[q]
+                c_cross = c_pos + (1.0 - c_pos) * d_pos / (d_pos - dstage[12])
+                factor = max(factor, min(0.98 * c_cross, 0.9))
             h *= factor
             hit_kink = False
             if h < hmin_abs:
@@ -761,9 +784,40 @@ def integrate(
                 kinks,
                 stack_s,
                 stack_g,
+                0.0,
             )
-            if ev_s >= 0.0:
-                ev_kind = EV_CONTACT
+            while ev_s >= 0.0:
+                _, rate = _delta_rate(
+                    ev_s, t, h, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period
+                )
+                if rate > 0.0:
+                    ev_kind = EV_CONTACT
+                    break
+                # a grazing touch (δ reaches 0 without rising through it): look on
+                s_next = ev_s + max(1e-12, 1e-14 / h)
+                if s_next >= 1.0:
+                    ev_s = -1.0
+                    break
+                ev_s = _flight_scan(
+                    t,
+                    h,
+                    y,
+                    a0c,
+                    a0m,
+                    ynew,
+                    a1c,
+                    a1m,
+                    par,
+                    tx,
+                    ty,
+                    tsl,
+                    tsr,
+                    period,
+                    kinks,
+                    stack_s,
+                    stack_g,
+                    s_next,
+                )
         else:
             dmin = dstage[12]
             dmax = dstage[12]
@@ -807,7 +861,7 @@ def integrate(
             _, rate = _delta_rate(
                 ev_s, t, h, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period
             )
-            if (ev_kind == EV_LOSS and rate >= 0.0) or (ev_kind == EV_CONTACT and rate <= 0.0):
+            if ev_kind == EV_LOSS and rate >= 0.0:
                 ev_kind = -1
         hstep = h
         if ev_kind >= 0:
@@ -817,7 +871,22 @@ def integrate(
                 for q in range(4):
                     K1[0, q] = K[0, q]
                 _, hint = _rk_step(
-                    t, y, hstep, mode, K1, ynew, dstage, par, tx, ty, tsl, tsr, tscale, period, hint
+                    t,
+                    y,
+                    hstep,
+                    mode,
+                    K1,
+                    ynew,
+                    dstage,
+                    tmp,
+                    par,
+                    tx,
+                    ty,
+                    tsl,
+                    tsr,
+                    tscale,
+                    period,
+                    hint,
                 )
                 nrhs += 12
                 for q in range(13):
@@ -946,6 +1015,19 @@ def integrate(
             tr_t[n_tr] = t
             tr_k[n_tr] = ev_kind
             n_tr += 1
+            # Put the state exactly on the new side of the switching surface: the step
+            # that reached the event carries an error of ~rtol·|y| (1e-14 m), enough to
+            # leave δ on the old side and fool the next scan at its very first instant.
+            ck_e, hint = table_value(tx, ty, tsl, tsr, period, v * t, hint)
+            if ev_kind == EV_LOSS:
+                target = -EVENT_OFFSET
+            elif ev_kind == EV_CONTACT:
+                target = EVENT_OFFSET
+            elif ev_kind == EV_YIELD:
+                target = par[P_DY] + par[P_HYST] + EVENT_OFFSET
+            else:
+                target = par[P_DY] - par[P_HYST] - EVENT_OFFSET
+            y[0] = ck_e + y[2] - target
             if ev_kind == EV_LOSS:
                 mode = FLIGHT
                 min_delta = min(min_delta, 0.0)
@@ -985,7 +1067,7 @@ def integrate(
                 )
                 rate = max(abs(rate), 1e-6)
                 tau = 2.87 * (par[P_MASS] ** 2 / (par[P_C] ** 2 * rate)) ** 0.2
-                h = min(h, 0.02 * tau)
+                h = min(h, IMPACT_FIRST_STEP * tau)
             elif ev_kind == EV_LOSS and par[P_COMPLIANT] == 0.0:
                 # ballistic flight: the parabola is exact, the scan finds the landing
                 h = t1 - t
