@@ -109,7 +109,7 @@ class ConstraintTable:
         return out
 
     def contact_point(self, xq: NDArray[np.float64]) -> NDArray[np.float64]:
-        """The contact point x_D for wheel positions ``xq`` (nearest node, unwrapped)."""
+        """The contact point x_D for wheel positions ``xq`` (linear between nodes, unwrapped)."""
         xq = np.asarray(xq, dtype=np.float64)
         out = np.empty(xq.shape)
         contact_many(self.x, self.contact_x, self.period, xq.ravel(), out.ravel())
@@ -284,6 +284,8 @@ def contact_many(
     xq: NDArray[np.float64],
     out: NDArray[np.float64],
 ) -> None:
+    """Contact points at ``xq``: linear between nodes (a wheel pivoting on a corner keeps
+    x_D fixed, which the nodes on either side share), following the wheel outside."""
     hint = 0
     n = x.size
     for k in range(xq.size):
@@ -295,5 +297,5 @@ def contact_many(
             out[k] = cx[n - 1] + shift + (xw - x[n - 1])
             continue
         hint = locate(x, xw, hint)
-        i = hint if (xw - x[hint]) <= (x[hint + 1] - xw) else hint + 1
-        out[k] = cx[i] + shift + (xw - x[i])
+        u = (xw - x[hint]) / (x[hint + 1] - x[hint])
+        out[k] = cx[hint] + u * (cx[hint + 1] - cx[hint]) + shift

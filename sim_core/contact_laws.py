@@ -38,6 +38,8 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from sim_core.materials import DerivedQuantities
+
 HERTZ = 0
 JOHNSON = 1
 HERTZ_PLASTIC = 2
@@ -83,11 +85,34 @@ class ContactModel:
     def __post_init__(self) -> None:
         if not (math.isfinite(self.coefficient) and self.coefficient > 0):
             raise ValueError(f"contact coefficient must be positive, got {self.coefficient!r}")
-        if self.law.is_plastic and not (self.yield_force > 0 and self.yield_indentation > 0):
+        if not (math.isfinite(self.johnson_coefficient) and self.johnson_coefficient > 0):
+            raise ValueError(
+                f"johnson_coefficient must be positive and finite, got {self.johnson_coefficient!r}"
+            )
+        if not self.law.is_plastic:
+            return
+        f_y, d_y = self.yield_force, self.yield_indentation
+        if not (math.isfinite(f_y) and f_y > 0 and math.isfinite(d_y) and d_y > 0):
             raise ValueError(
                 f"contact law {self.law.name.lower()} needs a positive yield force and "
-                "yield indentation: give the material a yield_stress"
+                f"yield indentation, both finite (got {f_y!r} N, {d_y!r} m): give the material a yield_stress"
             )
+        # The laws of MODEL.md §3 are continuous at δ_Y: F_Y = C·δ_Y^(3/2).
+        if abs(self.coefficient * d_y**1.5 / f_y - 1.0) > 1e-9:
+            raise ValueError(
+                f"yield force {f_y!r} N and yield indentation {d_y!r} m disagree: "
+                f"C·δ_Y^(3/2) = {self.coefficient * d_y**1.5!r} N (use materials.derive)"
+            )
+
+    @classmethod
+    def from_derived(cls, law: ContactLaw, derived: DerivedQuantities) -> ContactModel:
+        """The model of ``law`` with C, F_Y, δ_Y (and ϑ_Y) from ``materials.derive``."""
+        return cls(
+            law,
+            derived.contact_coefficient,
+            derived.yield_force or 0.0,
+            derived.yield_indentation or 0.0,
+        )
 
     def force(self, delta: NDArray[np.float64] | float) -> NDArray[np.float64]:
         """Loading-branch force for an array of indentations (vectorised)."""

@@ -99,28 +99,16 @@ def test_plastic_law_needs_yield(law: ContactLaw, f_y: float, d_y: float) -> Non
         ContactModel(law, K600.c, f_y, d_y)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="bug: ContactModel does not validate johnson_coefficient (NaN accepted, F(δ>δ_Y) = NaN)",
-)
 def test_contact_model_rejects_nan_johnson_coefficient() -> None:
     with pytest.raises(ValueError, match="johnson"):
         ContactModel(ContactLaw.JOHNSON, K600.c, K600.f_y, K600.d_y, johnson_coefficient=NAN)
 
 
-@pytest.mark.xfail(
-    strict=True, reason="bug: ContactModel accepts an infinite yield force (checked only > 0)"
-)
 def test_contact_model_rejects_infinite_yield_force() -> None:
     with pytest.raises(ValueError, match="yield"):
         ContactModel(ContactLaw.JOHNSON, K600.c, INF, K600.d_y)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="gap: ContactModel accepts F_Y != C·δ_Y^1.5, which makes F(δ) jump at δ_Y "
-    "(MODEL §3's laws are continuous there)",
-)
 def test_contact_model_rejects_inconsistent_yield_pair() -> None:
     with pytest.raises(ValueError, match="yield"):
         ContactModel(ContactLaw.HERTZ_PLASTIC, K600.c, 2.0 * K600.f_y, K600.d_y)
