@@ -184,50 +184,143 @@ def _rhs(
     return ac, am, delta, hint
 
 
+# Septic Hermite interpolation: with s = (t - t_n)/h the position is Σ c_k s^k, k = 0..7,
+# matching position, velocity, acceleration and jerk at both ends. c_0..c_3 come from
+# the start; c_4..c_7 = _SEPTIC_INV · (the end conditions' residuals).
+_SEPTIC_INV = np.linalg.inv(
+    np.array(
+        [
+            [1.0, 1.0, 1.0, 1.0],
+            [4.0, 5.0, 6.0, 7.0],
+            [12.0, 20.0, 30.0, 42.0],
+            [24.0, 60.0, 120.0, 210.0],
+        ]
+    )
+)
+
+
 @numba.njit(cache=True, inline="always")
-def _hermite5(
-    s: float, h: float, y0: float, v0: float, a0: float, y1: float, v1: float, a1: float
-) -> tuple[float, float]:
-    """Quintic Hermite position and velocity at fraction s of a step of length h."""
-    s2 = s * s
-    s3 = s2 * s
-    s4 = s3 * s
-    s5 = s4 * s
-    h0 = 1.0 - 10.0 * s3 + 15.0 * s4 - 6.0 * s5
-    h1 = s - 6.0 * s3 + 8.0 * s4 - 3.0 * s5
-    h2 = 0.5 * (s2 - 3.0 * s3 + 3.0 * s4 - s5)
-    h3 = 10.0 * s3 - 15.0 * s4 + 6.0 * s5
-    h4 = -4.0 * s3 + 7.0 * s4 - 3.0 * s5
-    h5 = 0.5 * (s3 - 2.0 * s4 + s5)
-    pos = h0 * y0 + h1 * h * v0 + h2 * h * h * a0 + h3 * y1 + h4 * h * v1 + h5 * h * h * a1
-    d0 = -30.0 * s2 + 60.0 * s3 - 30.0 * s4
-    d1 = 1.0 - 18.0 * s2 + 32.0 * s3 - 15.0 * s4
-    d2 = 0.5 * (2.0 * s - 9.0 * s2 + 12.0 * s3 - 5.0 * s4)
-    d3 = 30.0 * s2 - 60.0 * s3 + 30.0 * s4
-    d4 = -12.0 * s2 + 28.0 * s3 - 15.0 * s4
-    d5 = 0.5 * (3.0 * s2 - 8.0 * s3 + 5.0 * s4)
-    vel = (d0 * y0 + d1 * h * v0 + d2 * h * h * a0 + d3 * y1 + d4 * h * v1 + d5 * h * h * a1) / h
-    return pos, vel
+def _septic_fill(
+    c: NDArray[np.float64],
+    row: int,
+    h: float,
+    p0: float,
+    v0: float,
+    a0: float,
+    j0: float,
+    p1: float,
+    v1: float,
+    a1: float,
+    j1: float,
+) -> None:
+    h2 = h * h
+    h3 = h2 * h
+    c0 = p0
+    c1 = h * v0
+    c2 = 0.5 * h2 * a0
+    c3 = h3 * j0 / 6.0
+    r0 = p1 - (c0 + c1 + c2 + c3)
+    r1 = h * v1 - (c1 + 2.0 * c2 + 3.0 * c3)
+    r2 = h2 * a1 - (2.0 * c2 + 6.0 * c3)
+    r3 = h3 * j1 - 6.0 * c3
+    c[row, 0] = c0
+    c[row, 1] = c1
+    c[row, 2] = c2
+    c[row, 3] = c3
+    for k in range(4):
+        c[row, 4 + k] = (
+            _SEPTIC_INV[k, 0] * r0
+            + _SEPTIC_INV[k, 1] * r1
+            + _SEPTIC_INV[k, 2] * r2
+            + _SEPTIC_INV[k, 3] * r3
+        )
 
 
 @numba.njit(cache=True)
-def _dense(
-    s: float,
+def _fill_dense(
+    coef: NDArray[np.float64],
     h: float,
     y0: NDArray[np.float64],
-    a0c: float,
-    a0m: float,
+    k0: NDArray[np.float64],
+    j0c: float,
+    j0m: float,
     y1: NDArray[np.float64],
-    a1c: float,
-    a1m: float,
-) -> tuple[float, float, float, float]:
-    """(y_C, v_C, y_M, v_M) at fraction s of the step."""
-    yc, vc = _hermite5(s, h, y0[0], y0[1], a0c, y1[0], y1[1], a1c)
-    ym = 0.0
-    vm = 0.0
-    if y0[2] != 0.0 or y1[2] != 0.0 or y0[3] != 0.0 or y1[3] != 0.0 or a0m != 0.0 or a1m != 0.0:
-        ym, vm = _hermite5(s, h, y0[2], y0[3], a0m, y1[2], y1[3], a1m)
-    return yc, vc, ym, vm
+    k1: NDArray[np.float64],
+    j1c: float,
+    j1m: float,
+) -> None:
+    """Coefficients of the step's dense output; k0/k1 are (v_C, a_C, v_M, a_M) at the ends."""
+    _septic_fill(coef, 0, h, y0[0], y0[1], k0[1], j0c, y1[0], y1[1], k1[1], j1c)
+    _septic_fill(coef, 1, h, y0[2], y0[3], k0[3], j0m, y1[2], y1[3], k1[3], j1m)
+
+
+@numba.njit(cache=True, inline="always")
+def _dense(s: float, h: float, coef: NDArray[np.float64]) -> tuple[float, float, float, float]:
+    """(y_C, v_C, y_M, v_M) at fraction s of the step (septic Hermite, O(h^8) in position)."""
+    pc = coef[0, 7]
+    dc = 7.0 * coef[0, 7]
+    pm = coef[1, 7]
+    dm = 7.0 * coef[1, 7]
+    for k in range(6, 0, -1):
+        pc = pc * s + coef[0, k]
+        dc = dc * s + k * coef[0, k]
+        pm = pm * s + coef[1, k]
+        dm = dm * s + k * coef[1, k]
+    pc = pc * s + coef[0, 0]
+    pm = pm * s + coef[1, 0]
+    return pc, dc / h, pm, dm / h
+
+
+@numba.njit(cache=True, inline="always")
+def _before(x: float, left: bool) -> float:
+    """x, or a position just before it (to read the left-hand slope at a kink)."""
+    if left:
+        return x - 1e-13 * max(1.0, abs(x))
+    return x
+
+
+@numba.njit(cache=True)
+def _jerks(
+    t: float,
+    y: NDArray[np.float64],
+    am: float,
+    mode: int,
+    par: NDArray[np.float64],
+    tx: NDArray[np.float64],
+    ty: NDArray[np.float64],
+    tsl: NDArray[np.float64],
+    tsr: NDArray[np.float64],
+    period: float,
+    hint: int,
+    left: bool,
+) -> tuple[float, float, int]:
+    """(dä_C/dt, dä_M/dt, hint) in ``mode``: F'(δ)·dδ/dt through the masses.
+
+    ``left``: take the constraint's slope just before t (a step ending on a kink).
+
+    (A curvature-dependent C(x) adds C'(x)·V·δ^(3/2), neglected here: it only
+    touches the interpolation between step ends, not the steps.)
+    """
+    dfdd = 0.0
+    rate = 0.0
+    if mode != FLIGHT:
+        ck, dck, hint = table_eval(tx, ty, tsl, tsr, period, _before(par[P_SPEED] * t, left), hint)
+        delta = -y[0] + ck + y[2]
+        rate = -y[1] + par[P_SPEED] * dck + y[3]
+        if delta > 0.0:
+            if mode == ELASTIC:
+                dfdd = 1.5 * par[P_C] * math.sqrt(delta)
+            elif int(par[P_LAW]) == JOHNSON:
+                sj = 2.0 * delta / par[P_DY] - 1.0
+                if sj < 1e-300:
+                    sj = 1e-300
+                th3 = 3.0 * par[P_THETA]
+                dfdd = par[P_FY] * (2.0 / par[P_DY]) * (1.0 + math.log(sj) / th3 + 1.0 / th3)
+    jc = dfdd * rate / par[P_MASS]
+    jm = 0.0
+    if par[P_COMPLIANT] > 0.0:
+        jm = (-dfdd * rate - par[P_FSTIFF] * y[3] - par[P_FDAMP] * am) / par[P_FMASS]
+    return jc, jm, hint
 
 
 @numba.njit(cache=True)
@@ -236,12 +329,7 @@ def _gval(
     kind: int,
     t: float,
     h: float,
-    y0: NDArray[np.float64],
-    a0c: float,
-    a0m: float,
-    y1: NDArray[np.float64],
-    a1c: float,
-    a1m: float,
+    coef: NDArray[np.float64],
     par: NDArray[np.float64],
     tx: NDArray[np.float64],
     ty: NDArray[np.float64],
@@ -254,7 +342,7 @@ def _gval(
     kind: 0 contact (g = δ), 1 loss (g = -δ), 2 yield (g = δ - δ_Y - hyst),
     3 unyield (g = δ_Y - hyst - δ).
     """
-    yc, _, ym, _ = _dense(s, h, y0, a0c, a0m, y1, a1c, a1m)
+    yc, _, ym, _ = _dense(s, h, coef)
     ck, _, _ = table_eval(tx, ty, tsl, tsr, period, par[P_SPEED] * (t + s * h), 0)
     d = -yc + ck + ym
     if kind == 0:
@@ -271,12 +359,7 @@ def _delta_rate(
     s: float,
     t: float,
     h: float,
-    y0: NDArray[np.float64],
-    a0c: float,
-    a0m: float,
-    y1: NDArray[np.float64],
-    a1c: float,
-    a1m: float,
+    coef: NDArray[np.float64],
     par: NDArray[np.float64],
     tx: NDArray[np.float64],
     ty: NDArray[np.float64],
@@ -285,7 +368,7 @@ def _delta_rate(
     period: float,
 ) -> tuple[float, float]:
     """(δ, dδ/dt) at fraction s of the step."""
-    yc, vc, ym, vm = _dense(s, h, y0, a0c, a0m, y1, a1c, a1m)
+    yc, vc, ym, vm = _dense(s, h, coef)
     ck, dck, _ = table_eval(tx, ty, tsl, tsr, period, par[P_SPEED] * (t + s * h), 0)
     return -yc + ck + ym, -vc + par[P_SPEED] * dck + vm
 
@@ -299,12 +382,7 @@ def _root(
     kind: int,
     t: float,
     h: float,
-    y0: NDArray[np.float64],
-    a0c: float,
-    a0m: float,
-    y1: NDArray[np.float64],
-    a1c: float,
-    a1m: float,
+    coef: NDArray[np.float64],
     par: NDArray[np.float64],
     tx: NDArray[np.float64],
     ty: NDArray[np.float64],
@@ -321,7 +399,7 @@ def _root(
         sm = (sa * gb - sb * ga) / (gb - ga) if gb != ga else 0.5 * (sa + sb)
         if not (sa < sm < sb):
             sm = 0.5 * (sa + sb)
-        gm = _gval(sm, kind, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
+        gm = _gval(sm, kind, t, h, coef, par, tx, ty, tsl, tsr, period)
         if gm > 0.0:
             sb = sm
             gb = gm
@@ -342,12 +420,7 @@ def _first_crossing_scan(
     kind: int,
     t: float,
     h: float,
-    y0: NDArray[np.float64],
-    a0c: float,
-    a0m: float,
-    y1: NDArray[np.float64],
-    a1c: float,
-    a1m: float,
+    coef: NDArray[np.float64],
     par: NDArray[np.float64],
     tx: NDArray[np.float64],
     ty: NDArray[np.float64],
@@ -357,14 +430,14 @@ def _first_crossing_scan(
     n_points: int,
 ) -> float:
     """Scan g at n_points+1 equal fractions (and the RK nodes); return the root or -1."""
-    ga = _gval(0.0, kind, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
+    ga = _gval(0.0, kind, t, h, coef, par, tx, ty, tsl, tsr, period)
     if ga > 0.0:
         # Starting on the wrong side by round-off: treat the start as g = 0.
         ga = 0.0
     sa = 0.0
     for j in range(1, n_points + 1):
         sb = j / n_points
-        gb = _gval(sb, kind, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
+        gb = _gval(sb, kind, t, h, coef, par, tx, ty, tsl, tsr, period)
         if gb > 0.0:
             return _root(
                 sa,
@@ -374,12 +447,7 @@ def _first_crossing_scan(
                 kind,
                 t,
                 h,
-                y0,
-                a0c,
-                a0m,
-                y1,
-                a1c,
-                a1m,
+                coef,
                 par,
                 tx,
                 ty,
@@ -396,12 +464,7 @@ def _first_crossing_scan(
 def _flight_scan(
     t: float,
     h: float,
-    y0: NDArray[np.float64],
-    a0c: float,
-    a0m: float,
-    y1: NDArray[np.float64],
-    a1c: float,
-    a1m: float,
+    coef: NDArray[np.float64],
     par: NDArray[np.float64],
     tx: NDArray[np.float64],
     ty: NDArray[np.float64],
@@ -421,6 +484,12 @@ def _flight_scan(
     v = par[P_SPEED]
     d2 = par[P_LOAD] / par[P_MASS] + v * v * par[P_C2MAX]
     if par[P_COMPLIANT] > 0.0:
+        # the foundation's acceleration at the step's ends, from the dense coefficients
+        a0m = 2.0 * coef[1, 2] / (h * h)
+        a1m = 0.0
+        for k in range(2, 8):
+            a1m += k * (k - 1) * coef[1, k]
+        a1m /= h * h
         d2 += 2.0 * max(abs(a0m), abs(a1m)) + 1e-12
     x0 = v * (t + s_start * h)
     x1 = v * (t + h)
@@ -432,7 +501,7 @@ def _flight_scan(
     min_ds = 1e-13 / h
     cap = stack_s.size
     sa = s_start
-    ga = _gval(sa, 0, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period)
+    ga = _gval(sa, 0, t, h, coef, par, tx, ty, tsl, tsr, period)
     if ga > 0.0:
         ga = 0.0
     # segments between kinks, left to right; inside each, depth-first halving
@@ -445,9 +514,7 @@ def _flight_scan(
             s_end = 1.0
         n = 1
         stack_s[0] = s_end
-        stack_g[0] = _gval(
-            s_end, 0, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period
-        )
+        stack_g[0] = _gval(s_end, 0, t, h, coef, par, tx, ty, tsl, tsr, period)
         while n > 0:
             sb = stack_s[n - 1]
             gb = stack_g[n - 1]
@@ -455,9 +522,7 @@ def _flight_scan(
             if gb > 0.0:
                 # A crossing lies in [sa, sb] and none before sa. It is the only one if g
                 # is monotone there: g'(sa) > |g''|max·Δt. Otherwise halve and look left first.
-                _, rate_a = _delta_rate(
-                    sa, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period
-                )
+                _, rate_a = _delta_rate(sa, t, h, coef, par, tx, ty, tsl, tsr, period)
                 if rate_a > d2 * dt or (sb - sa) < min_ds or n >= cap:
                     return _root(
                         sa,
@@ -467,12 +532,7 @@ def _flight_scan(
                         0,
                         t,
                         h,
-                        y0,
-                        a0c,
-                        a0m,
-                        y1,
-                        a1c,
-                        a1m,
+                        coef,
                         par,
                         tx,
                         ty,
@@ -490,9 +550,7 @@ def _flight_scan(
                     continue
             sm = 0.5 * (sa + sb)
             stack_s[n] = sm
-            stack_g[n] = _gval(
-                sm, 0, t, h, y0, a0c, a0m, y1, a1c, a1m, par, tx, ty, tsl, tsr, period
-            )
+            stack_g[n] = _gval(sm, 0, t, h, coef, par, tx, ty, tsl, tsr, period)
             n += 1
     return -1.0
 
@@ -669,6 +727,8 @@ def integrate(
     K[0, 1] = ac
     K[0, 2] = y[3]
     K[0, 3] = am
+    coef = np.zeros((2, 8))
+    j0c, j0m, hint = _jerks(t, y, am, mode, par, tx, ty, tsl, tsr, period, hint, False)
     peak_delta = delta0
     min_delta = delta0 if mode != FLIGHT else 0.0
     t_flight = 0.0
@@ -760,10 +820,10 @@ def integrate(
         factor = MAX_FACTOR if err == 0.0 else min(MAX_FACTOR, SAFETY * err ** (-1.0 / 8.0))
         if rejected:
             factor = min(1.0, factor)
-        a0c = K[0, 1]
-        a0m = K[0, 3]
-        a1c = K[12, 1]
-        a1m = K[12, 3]
+        j1c, j1m, hint = _jerks(
+            t + h, ynew, K[12, 3], mode, par, tx, ty, tsl, tsr, period, hint, True
+        )
+        _fill_dense(coef, h, y, K[0], j0c, j0m, ynew, K[12], j1c, j1m)
         # --- events
         ev_s = -1.0
         ev_kind = -1
@@ -771,12 +831,7 @@ def integrate(
             ev_s = _flight_scan(
                 t,
                 h,
-                y,
-                a0c,
-                a0m,
-                ynew,
-                a1c,
-                a1m,
+                coef,
                 par,
                 tx,
                 ty,
@@ -789,9 +844,7 @@ def integrate(
                 0.0,
             )
             while ev_s >= 0.0:
-                _, rate = _delta_rate(
-                    ev_s, t, h, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period
-                )
+                _, rate = _delta_rate(ev_s, t, h, coef, par, tx, ty, tsl, tsr, period)
                 if rate > 0.0:
                     ev_kind = EV_CONTACT
                     break
@@ -803,12 +856,7 @@ def integrate(
                 ev_s = _flight_scan(
                     t,
                     h,
-                    y,
-                    a0c,
-                    a0m,
-                    ynew,
-                    a1c,
-                    a1m,
+                    coef,
                     par,
                     tx,
                     ty,
@@ -837,32 +885,24 @@ def integrate(
             slack = 1.5 * (amax_c + amax_m + v * v * par[P_C2MAX]) * gap * gap / 8.0
             if mode == ELASTIC:
                 if dmin - slack <= 0.0:
-                    s_l = _first_crossing_scan(
-                        1, t, h, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period, 16
-                    )
+                    s_l = _first_crossing_scan(1, t, h, coef, par, tx, ty, tsl, tsr, period, 16)
                     if s_l >= 0.0:
                         ev_s = s_l
                         ev_kind = EV_LOSS
                 if int(par[P_LAW]) != HERTZ and dmax + slack > par[P_DY]:
-                    s_y = _first_crossing_scan(
-                        2, t, h, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period, 16
-                    )
+                    s_y = _first_crossing_scan(2, t, h, coef, par, tx, ty, tsl, tsr, period, 16)
                     if s_y >= 0.0 and (ev_s < 0.0 or s_y < ev_s):
                         ev_s = s_y
                         ev_kind = EV_YIELD
             else:
                 if dmin - slack < par[P_DY]:
-                    s_u = _first_crossing_scan(
-                        3, t, h, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period, 16
-                    )
+                    s_u = _first_crossing_scan(3, t, h, coef, par, tx, ty, tsl, tsr, period, 16)
                     if s_u >= 0.0:
                         ev_s = s_u
                         ev_kind = EV_UNYIELD
         if ev_kind >= 0:
             # grazing test: the rate of δ at the root must point the right way
-            _, rate = _delta_rate(
-                ev_s, t, h, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period
-            )
+            _, rate = _delta_rate(ev_s, t, h, coef, par, tx, ty, tsl, tsr, period)
             if ev_kind == EV_LOSS and rate >= 0.0:
                 ev_kind = -1
         hstep = h
@@ -894,14 +934,16 @@ def integrate(
                 for q in range(13):
                     for j in range(4):
                         K[q, j] = K1[q, j]
-                a1c = K[12, 1]
-                a1m = K[12, 3]
+                j1c, j1m, hint = _jerks(
+                    t + hstep, ynew, K[12, 3], mode, par, tx, ty, tsl, tsr, period, hint, True
+                )
+                _fill_dense(coef, hstep, y, K[0], j0c, j0m, ynew, K[12], j1c, j1m)
             else:
                 hstep = 0.0
                 for q in range(4):
                     ynew[q] = y[q]
-                a1c = a0c
-                a1m = a0m
+                    K[12, q] = K[0, q]
+                _fill_dense(coef, 1.0, y, K[0], j0c, j0m, ynew, K[12], j0c, j0m)
             hit_kink = False
         tn = t + hstep
         if hit_kink:
@@ -909,8 +951,8 @@ def integrate(
         # --- dense output: samples, extrema, dents
         while si < ns and sample_t[si] <= tn:
             ts = sample_t[si]
-            s = (ts - t) / hstep if hstep > 0.0 else 1.0
-            yc, vc, ym, vm = _dense(s, hstep, y, a0c, a0m, ynew, a1c, a1m)
+            s = (ts - t) / hstep if hstep > 0.0 else 0.0
+            yc, vc, ym, vm = _dense(s, hstep, coef)
             ck, _, sc, hint = _constraint(tx, ty, tsl, tsr, tscale, period, v * ts, hint)
             d = -yc + ck + ym
             samples[si, S_T] = ts
@@ -929,7 +971,9 @@ def integrate(
         elif hstep > 0.0:
             # δ and dδ/dt at the step's ends come from the states themselves
             ck_a, dck_a, hint = table_eval(tx, ty, tsl, tsr, period, v * t, hint)
-            ck_b, dck_b, hint = table_eval(tx, ty, tsl, tsr, period, v * (t + hstep), hint)
+            ck_b, dck_b, hint = table_eval(
+                tx, ty, tsl, tsr, period, _before(v * (t + hstep), True), hint
+            )
             d_a = -y[0] + ck_a + y[2]
             r_a = -y[1] + v * dck_a + y[3]
             d_b = -ynew[0] + ck_b + ynew[2]
@@ -949,9 +993,7 @@ def integrate(
                     sm = (sa * rb - sb * ra) / (rb - ra)
                     if not (sa < sm < sb):
                         sm = 0.5 * (sa + sb)
-                    _, rm = _delta_rate(
-                        sm, t, hstep, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period
-                    )
+                    _, rm = _delta_rate(sm, t, hstep, coef, par, tx, ty, tsl, tsr, period)
                     if (rm > 0.0) == (ra > 0.0):
                         sa = sm
                         ra = rm
@@ -966,9 +1008,7 @@ def integrate(
                         side = -1
                     if (sb - sa) * hstep < 1e-11 or abs(rm) * hstep < 1e-16:
                         break
-                d_m, _ = _delta_rate(
-                    sm, t, hstep, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period
-                )
+                d_m, _ = _delta_rate(sm, t, hstep, coef, par, tx, ty, tsl, tsr, period)
                 peak_delta = max(peak_delta, d_m)
                 min_delta = min(min_delta, d_m)
             if mode == PLASTIC and track_dents:
@@ -980,9 +1020,7 @@ def integrate(
                     dents = nd
                 for q in range(npts + 1):
                     s = q / npts
-                    d_q, _ = _delta_rate(
-                        s, t, hstep, y, a0c, a0m, ynew, a1c, a1m, par, tx, ty, tsl, tsr, period
-                    )
+                    d_q, _ = _delta_rate(s, t, hstep, coef, par, tx, ty, tsl, tsr, period)
                     xq = v * (t + s * hstep)
                     xw, shift = wrap(xq, tx[0], period)
                     j = locate(tx, xw, hint)
@@ -1048,6 +1086,7 @@ def integrate(
             K[0, 1] = ac
             K[0, 2] = y[3]
             K[0, 3] = am
+            j0c, j0m, hint = _jerks(t, y, am, mode, par, tx, ty, tsl, tsr, period, hint, False)
             if ev_kind == EV_CONTACT:
                 # Hertz impact duration ~ 2.87·(m²/(C²·v_impact))^(1/5) (Johnson, Contact
                 # Mechanics §11.4): start with a small fraction of it.
@@ -1055,12 +1094,7 @@ def integrate(
                     1.0,
                     t - hstep,
                     hstep,
-                    y_prev,
-                    a0c,
-                    a0m,
-                    y,
-                    a1c,
-                    a1m,
+                    coef,
                     par,
                     tx,
                     ty,
@@ -1079,6 +1113,14 @@ def integrate(
         else:
             for q in range(4):
                 K[0, q] = K[12, q]
+            if hit_kink:
+                # the constraint's slope jumps here: the jerk does too
+                j0c, j0m, hint = _jerks(
+                    t, y, K[0, 3], mode, par, tx, ty, tsl, tsr, period, hint, False
+                )
+            else:
+                j0c = j1c
+                j0m = j1m
             h = h * factor
     stats = np.array([nsteps, nrej, nrhs], dtype=np.int64)
     extrema = np.array([peak_delta, min_delta, t_flight, t, float(mode)])

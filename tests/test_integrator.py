@@ -407,13 +407,6 @@ def test_energy_conserved_on_flat_rail(
     assert drift_max[1e-9] <= 3e-5  # regression guard at the default tolerance
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="finding: samples in contact come from a quintic Hermite interpolant over steps "
-    "of up to table.resolution/V (0.5 ms here, 1/7 of the contact period); at rtol 1e-9 the "
-    "sampled velocity is off by ~6e-6 of its amplitude while the step-end state is good to "
-    "~3e-8 (DOP853's own 7th-order dense output, or a step cap of ~1/(20·f0), would fix it)",
-)
 def test_samples_as_accurate_as_the_steps() -> None:
     case = Case(
         table=flat_constraint,
