@@ -4,10 +4,9 @@ The models are the source of truth (CONTRACT.md fixes the field names; the
 models may add fields, never rename or drop them). Every model rejects unknown
 fields, NaN and infinities, and does not coerce strings to numbers.
 
-``all_json_schemas()`` gives the JSON Schema of every top-level model, by name;
-``railtwin schema`` prints them. Other modules add their top-level models to
-``MODELS`` (the service will add SiteConfig, WheelPassage, PassageResult,
-ServiceError).
+``all_json_schemas()`` gives the JSON Schema of every top-level model, by name
+(the scenario contract's and the streaming service's messages and site file);
+``railtwin schema`` prints them.
 """
 
 from __future__ import annotations
@@ -45,14 +44,23 @@ MODELS: dict[str, type[BaseModel]] = {
 """Top-level models by the name ``railtwin schema NAME`` knows them by."""
 
 
+def all_models() -> dict[str, type[BaseModel]]:
+    """Every top-level model: the scenario contract's and the service's (messages, site)."""
+    from schemas.messages import MESSAGE_MODELS
+    from schemas.site import SiteConfig
+
+    return {**MODELS, **MESSAGE_MODELS, "SiteConfig": SiteConfig}
+
+
 def all_json_schemas() -> dict[str, dict[str, Any]]:
-    """{name: JSON Schema} of every top-level model in ``MODELS``."""
-    return {name: model.model_json_schema() for name, model in MODELS.items()}
+    """{name: JSON Schema} of every top-level model (``all_models``)."""
+    return {name: model.model_json_schema() for name, model in all_models().items()}
 
 
 __all__ = [
     "MAX_SAMPLES",
     "MODELS",
+    "all_models",
     "SCHEMA_VERSION",
     "CompliantFoundation",
     "CosineRail",
