@@ -1,7 +1,7 @@
 # railtwin: one entry point for humans and CI. Needs only python3 (3.11+), pip and make.
 #
 #   make test     venv + editable install with test extras, then ruff, mypy, pytest
-#   make demo     run a representative scenario and print its summary table
+#   make demo     start the twin on loopback, stream a sample train through it, print a line per wheel
 #   make bench    run the benchmarks (benchmarks/run_all.py)
 #   make figures  draw the paper's figures into figures/
 #   make lint     ruff and mypy only
@@ -12,7 +12,6 @@ PYTHON ?= python3
 VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed-stamp
-DEMO_SCENARIO ?= examples/cosine_hertz_560hz.json
 
 # numba's compile cache: inside the (git-ignored) venv so that a read-only
 # site-packages or a fresh CI checkout never matters, and runs reuse it.
@@ -58,14 +57,9 @@ test: $(STAMP)
 	echo "make test: all checks passed"
 
 demo: $(STAMP)
-	@echo "== railtwin demo: one scenario through the physics core =="
-	@echo "   (the streaming service demo is not there yet: this runs the batch CLI)"
-	@mkdir -p recordings
-	$(BIN)/railtwin simulate $(DEMO_SCENARIO) --out recordings/demo-result.json
-	@echo "== the streaming demo (railtwin serve) is not available yet =="
+	$(BIN)/python -m service.demo
 
 bench: $(STAMP)
-	@test -f benchmarks/run_all.py || { echo "make bench: benchmarks/run_all.py is not there yet" >&2; exit 1; }
 	$(BIN)/python -m benchmarks.run_all
 
 figures: $(STAMP)

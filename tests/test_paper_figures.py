@@ -109,13 +109,14 @@ def test_fig9_compliant_foundation() -> None:
     assert f["foundation_stiffness_n_per_m"] == pytest.approx(2.31e8, rel=0.005)
     assert f["foundation_mode_hz"]["0.25m"] == pytest.approx(590.0, rel=0.02)
     rigid, heavy, same, light = f["rigid"], f["exact_10m"], f["exact_1m"], f["exact_0.25m"]
-    # M = 10m bounces like the rigid case. The count of losses over 300 periods at
-    # resonance is chaotic (MODEL.md §7: a 1e-13 s change in one landing moves it by
-    # tens of percent), so compare the time in flight, which is robust, and only
-    # require that the heavy foundation keeps losing contact.
+    # M = 10m bounces like the rigid case. 300 periods at resonance are chaotic
+    # (MODEL.md §7): the count of losses moves by tens of percent and the time in
+    # flight by ~0.015 between rtol 1e-9 and 1e-11 (113 vs 127 transitions, 92.6 %
+    # vs 91.3 % for the M = 10m case), so compare the time in flight with that
+    # spread allowed, and require that the heavy foundation keeps losing contact.
     assert heavy["losses"] > 0
     assert heavy["fraction_out_of_contact"] == pytest.approx(
-        rigid["fraction_out_of_contact"], abs=0.02
+        rigid["fraction_out_of_contact"], abs=0.04
     )
     # M = m: less time out of contact than rigid. (MODEL says "fewer losses";
     # counted as loss events it has *more* — 99 vs 50 in 300 periods — because
