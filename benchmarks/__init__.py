@@ -1,0 +1,1 @@
+"""railtwin benchmarks: ``make bench`` runs ``benchmarks.run_all``."""
