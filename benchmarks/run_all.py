@@ -48,6 +48,22 @@ def _jsonable(obj: Any) -> Any:
     return json.loads(json.dumps(obj, default=lambda o: o.item() if hasattr(o, "item") else str(o)))
 
 
+def _cell(v: Any) -> str:
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    return str(v)
+
+
+def _records_table(rows: list[dict[str, Any]]) -> str:
+    """A markdown table of a list of flat records (columns in first-seen order)."""
+    cols: list[str] = []
+    for r in rows:
+        cols += [k for k in r if k not in cols]
+    out = ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    out += ["| " + " | ".join(_cell(r.get(c, "")) for c in cols) + " |" for r in rows]
+    return "\n".join(out)
+
+
 def section_core(quick: bool) -> tuple[str, Any]:
     from benchmarks import core_bench
 
@@ -66,6 +82,8 @@ def section_constraint(quick: bool) -> tuple[str, Any] | None:
         return res["markdown"], res
     if hasattr(mod, "markdown"):
         return str(mod.markdown(res)), res
+    if isinstance(res, list) and res and all(isinstance(r, dict) for r in res):
+        return _records_table(res), res
     return "```\n" + json.dumps(_jsonable(res), indent=1) + "\n```", res
 
 
