@@ -21,6 +21,11 @@ How it is solved (all compiled with numba):
   inserted as a node: tangent junctions (segment → its end vertex → next
   segment) in closed form, crossings of non-adjacent pieces (kinks) by
   bisection to the last bit. So the table is exact piecewise (arcs and lines).
+- *An out-of-round wheel on a flat or cosine rail*: the piece sweep of
+  :mod:`sim_core.constraint_wheel_pieces` (the outline cut into pieces with one
+  smooth formula each, closed forms and Newton per piece, the changes of piece
+  located as roots of closed forms). ``method="general"`` forces the ψ-search
+  below instead (for cross-checks).
 - *Any other pair*: a global search over a ψ grid finer than both inputs'
   features, in a window bounded by the height range (a wheel point at ψ can
   only win if ``rail max + wheel bulge - 2R·sin²(ψ/2)`` reaches the value at
@@ -65,6 +70,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sim_core.constraint_table import ConstraintTable
+from sim_core.constraint_wheel_pieces import N_K as PN_K
+from sim_core.constraint_wheel_pieces import N_SL as PN_SL
+from sim_core.constraint_wheel_pieces import N_SR as PN_SR
+from sim_core.constraint_wheel_pieces import N_V as PN_V
+from sim_core.constraint_wheel_pieces import N_X as PN_X
+from sim_core.constraint_wheel_pieces import N_XD as PN_XD
+from sim_core.constraint_wheel_pieces import supports as supports_pieces
+from sim_core.constraint_wheel_pieces import tabulate_pieces
 from sim_core.rail import RAIL_SAMPLED, RAIL_STEP, RailProfile, rail_height
 from sim_core.wheel import (
     TWO_PI,
@@ -195,8 +208,15 @@ def _golden(
 
 
 @numba.njit(cache=True)
-def _vertex_psi(x: float, xv: float, psi: float, phi: float, wp: NDArray[np.float64],
-                wth: NDArray[np.float64], wdr: NDArray[np.float64]) -> float:
+def _vertex_psi(
+    x: float,
+    xv: float,
+    psi: float,
+    phi: float,
+    wp: NDArray[np.float64],
+    wth: NDArray[np.float64],
+    wdr: NDArray[np.float64],
+) -> float:
     """ψ with x + ρ(ψ + φ)·sin ψ = xv (Newton from ψ): the wheel point over the rail vertex xv."""
     code = int(wp[0])
     R = wp[1]
@@ -397,7 +417,9 @@ def _solve_t(x: float, args: tuple) -> tuple[float, float, float]:
 
 
 @numba.njit(cache=True)
-def _locate(lo: float, hi: float, plo: float, glo: float, phi_: float, ghi: float, args: tuple) -> float:
+def _locate(
+    lo: float, hi: float, plo: float, glo: float, phi_: float, ghi: float, args: tuple
+) -> float:
     """Bisection for a kink in (lo, hi): classify ψ at the midpoint against the two branches."""
     xl, xh = lo, hi
     for _ in range(200):
@@ -436,7 +458,9 @@ def _kink_row(xk: float, args: tuple, out: NDArray[np.float64]) -> None:
 
 
 @numba.njit(cache=True)
-def _make_node(xv: float, fixed: bool, args: tuple, row: NDArray[np.float64], row2: NDArray[np.float64]) -> int:
+def _make_node(
+    xv: float, fixed: bool, args: tuple, row: NDArray[np.float64], row2: NDArray[np.float64]
+) -> int:
     """Node(s) at xv into row (and row2, sorted by x); returns how many (1 or 2).
 
     Slopes are central differences; if the contact angle jumps within ±eps the
@@ -563,8 +587,11 @@ def _tabulate_general(
                     pb = nodes[ib, _PL] + nodes[ib, _GL] * (m - xb)
                     da = abs(pm - pa)
                     db = abs(pm - pb)
-                    if (min(da, db) > max(0.25 * abs(pa - pb), PSI_JUMP)
-                            and m - xa > 4.0 * eps and xb - m > 4.0 * eps):
+                    if (
+                        min(da, db) > max(0.25 * abs(pa - pb), PSI_JUMP)
+                        and m - xa > 4.0 * eps
+                        and xb - m > 4.0 * eps
+                    ):
                         third = m
                         break
                     if da <= db:
@@ -572,7 +599,9 @@ def _tabulate_general(
                     else:
                         hi = m
             else:
-                lo = _locate(xa, xb, nodes[ia, _PR], nodes[ia, _GR], nodes[ib, _PL], nodes[ib, _GL], args)
+                lo = _locate(
+                    xa, xb, nodes[ia, _PR], nodes[ia, _GR], nodes[ib, _PL], nodes[ib, _GL], args
+                )
                 hi = lo
             if not math.isnan(third):
                 k = _make_node(third, False, args, row, row2)
@@ -583,7 +612,9 @@ def _tabulate_general(
         elif h > 4.0 * eps:
             m = 0.5 * (xa + xb)
             vm, _, _ = _solve_t(m, args)
-            hm = 0.5 * (nodes[ia, _V] + nodes[ib, _V]) + 0.125 * h * (nodes[ia, _SR] - nodes[ib, _SL])
+            hm = 0.5 * (nodes[ia, _V] + nodes[ib, _V]) + 0.125 * h * (
+                nodes[ia, _SR] - nodes[ib, _SL]
+            )
             if abs(vm - hm) > HERMITE_TOL:
                 k = _make_node(m, False, args, row, row2)
                 have = True
@@ -619,7 +650,9 @@ def _tabulate_general(
 # round wheel on a polyline: closed form
 # ======================================================================================
 @numba.njit(cache=True)
-def _piece(pid: int, x: float, R: float, vx: NDArray[np.float64], vy: NDArray[np.float64]) -> tuple[float, float, float]:
+def _piece(
+    pid: int, x: float, R: float, vx: NDArray[np.float64], vy: NDArray[np.float64]
+) -> tuple[float, float, float]:
     """(value, slope, x_D) of piece ``pid`` (2k: arc of vertex k, 2k+1: line of segment k)."""
     k = pid >> 1
     if pid & 1 == 0:
@@ -638,7 +671,13 @@ def _piece(pid: int, x: float, R: float, vx: NDArray[np.float64], vy: NDArray[np
 
 @numba.njit(cache=True)
 def _poly_solve(
-    x: float, R: float, vx: NDArray[np.float64], vy: NDArray[np.float64], bmax: NDArray[np.float64], B: int, gmax: float
+    x: float,
+    R: float,
+    vx: NDArray[np.float64],
+    vy: NDArray[np.float64],
+    bmax: NDArray[np.float64],
+    B: int,
+    gmax: float,
 ) -> tuple[float, int]:
     """(y_C^k, active piece) of a round wheel on the polyline (vx, vy) at wheel position x."""
     n = vx.size
@@ -710,7 +749,9 @@ def _eff(pid: int, x: float, R: float, vx: NDArray[np.float64], vy: NDArray[np.f
 
 
 @numba.njit(cache=True)
-def _crossing(a: float, b: float, pa: int, pb: int, R: float, vx: NDArray[np.float64], vy: NDArray[np.float64]) -> float:
+def _crossing(
+    a: float, b: float, pa: int, pb: int, R: float, vx: NDArray[np.float64], vy: NDArray[np.float64]
+) -> float:
     """Where piece pb overtakes pa in [a, b] (bisection to the last bit)."""
     lo, hi = a, b
     for _ in range(200):
@@ -728,7 +769,13 @@ def _crossing(a: float, b: float, pa: int, pb: int, R: float, vx: NDArray[np.flo
 
 @numba.njit(cache=True)
 def _tabulate_poly(
-    x0: float, x1: float, nint: int, R: float, vx: NDArray[np.float64], vy: NDArray[np.float64], B: int
+    x0: float,
+    x1: float,
+    nint: int,
+    R: float,
+    vx: NDArray[np.float64],
+    vy: NDArray[np.float64],
+    B: int,
 ) -> NDArray[np.float64]:
     """Nodes of a round wheel on a polyline: grid nodes plus every change of active piece."""
     n = vx.size
@@ -907,7 +954,9 @@ def _tabulate_poly(
 def _check_range(x_start: float, x_end: float) -> tuple[float, float]:
     a, b = float(x_start), float(x_end)
     if not (math.isfinite(a) and math.isfinite(b)):
-        raise ValueError(f"constraint: x_start and x_end must be finite, got {x_start!r}, {x_end!r}")
+        raise ValueError(
+            f"constraint: x_start and x_end must be finite, got {x_start!r}, {x_end!r}"
+        )
     if not b > a:
         raise ValueError(f"constraint: x_end must exceed x_start, got x_start={a!r}, x_end={b!r}")
     return a, b
@@ -927,12 +976,20 @@ def flat_constraint(period: float = 1.0, resolution: float = MAX_RESOLUTION) -> 
     x = np.array([0.0, float(period)])
     z = np.zeros(2)
     return ConstraintTable(
-        x=x, y=z, slope_left=z.copy(), slope_right=z.copy(), contact_x=x.copy(),
-        kinks=np.empty(0), period=float(period), resolution=float(resolution),
+        x=x,
+        y=z,
+        slope_left=z.copy(),
+        slope_right=z.copy(),
+        contact_x=x.copy(),
+        kinks=np.empty(0),
+        period=float(period),
+        resolution=float(resolution),
     )
 
 
-def _table_from_nodes(nodes: NDArray[np.float64], period: float, resolution: float, dx: float) -> ConstraintTable:
+def _table_from_nodes(
+    nodes: NDArray[np.float64], period: float, resolution: float, dx: float
+) -> ConstraintTable:
     # merge nodes closer than the position round-off (keep left slope of the first)
     x = nodes[:, _X]
     keep = np.ones(x.size, bool)
@@ -973,7 +1030,16 @@ def _table_from_nodes(nodes: NDArray[np.float64], period: float, resolution: flo
 
 def _general_args(
     wheel: WheelOutline, rail: RailProfile
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float]:
+) -> tuple[
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    float,
+]:
     code, R, a, b, th, dr = wheel.compiled_args()
     wp = np.array([float(code), R, a, b, wheel.max_excess])
     rcode, ra, rb, rxs, rys = rail.compiled_args()
@@ -1021,16 +1087,39 @@ def evaluate_exact(
     dpsi = _dpsi(wheel, rail)
     y = np.empty(xq.shape)
     xd = np.empty(xq.shape)
-    _solve_many(xq.ravel(), float(phase), dpsi, gmax, wp, th, dr, rp, rxs, rys, st, y.reshape(-1), xd.reshape(-1))
+    _solve_many(
+        xq.ravel(),
+        float(phase),
+        dpsi,
+        gmax,
+        wp,
+        th,
+        dr,
+        rp,
+        rxs,
+        rys,
+        st,
+        y.reshape(-1),
+        xd.reshape(-1),
+    )
     return y, xd
 
 
 @numba.njit(cache=True)
 def _solve_many(
-    xq: NDArray[np.float64], phase: float, dpsi: float, gmax: float,
-    wp: NDArray[np.float64], wth: NDArray[np.float64], wdr: NDArray[np.float64],
-    rp: NDArray[np.float64], rxs: NDArray[np.float64], rys: NDArray[np.float64],
-    st: NDArray[np.float64], y: NDArray[np.float64], xd: NDArray[np.float64],
+    xq: NDArray[np.float64],
+    phase: float,
+    dpsi: float,
+    gmax: float,
+    wp: NDArray[np.float64],
+    wth: NDArray[np.float64],
+    wdr: NDArray[np.float64],
+    rp: NDArray[np.float64],
+    rxs: NDArray[np.float64],
+    rys: NDArray[np.float64],
+    st: NDArray[np.float64],
+    y: NDArray[np.float64],
+    xd: NDArray[np.float64],
 ) -> None:
     for i in range(xq.size):
         v, _, d = _solve(xq[i], phase, dpsi, gmax, wp, wth, wdr, rp, rxs, rys, st)
@@ -1038,7 +1127,9 @@ def _solve_many(
         xd[i] = d
 
 
-def _polyline(rail: RailProfile, lo: float, hi: float, R: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def _polyline(
+    rail: RailProfile, lo: float, hi: float, R: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Vertices of a sampled or step rail, extended flat to cover [lo - 2R, hi + 2R]."""
     if rail.kind == "step":
         p, hgt = rail.step_position, rail.step_height
@@ -1050,7 +1141,9 @@ def _polyline(rail: RailProfile, lo: float, hi: float, R: float) -> tuple[NDArra
     return vx, vy
 
 
-def _ideal_flat_on_flat(wheel: WheelOutline, x0: float, phase: float, step: float, resolution: float) -> ConstraintTable:
+def _ideal_flat_on_flat(
+    wheel: WheelOutline, x0: float, phase: float, step: float, resolution: float
+) -> ConstraintTable:
     """Closed form for an ideal flat on a flat rail, over one turn from x0.
 
     With φ wrapped to [-π, π): y_C^k = R·cos(θ0 - |φ|) - R = -2R·sin²((θ0 - |φ|)/2)
@@ -1089,9 +1182,15 @@ def _ideal_flat_on_flat(wheel: WheelOutline, x0: float, phase: float, step: floa
     y[-1], sl[-1], sr[-1] = y[0], sl[0], sr[0]
     xd[-1] = xd[0] + P
     return ConstraintTable(
-        x=x, y=y, slope_left=sl, slope_right=sr, contact_x=xd,
-        kinks=np.array([x[kink_i] if kink_i < x.size - 1 else x[0]]), period=P,
-        resolution=resolution, meta={"dx": float(step), "nodes": float(x.size)},
+        x=x,
+        y=y,
+        slope_left=sl,
+        slope_right=sr,
+        contact_x=xd,
+        kinks=np.array([x[kink_i] if kink_i < x.size - 1 else x[0]]),
+        period=P,
+        resolution=resolution,
+        meta={"dx": float(step), "nodes": float(x.size)},
     )
 
 
@@ -1146,6 +1245,8 @@ def tabulate_constraint(
     if wheel.kind == "ideal_flat" and rail.kind == "flat" and method == "auto":
         step = float(dx) if dx is not None else min(0.25 * resolution, 1e-3)
         return _ideal_flat_on_flat(wheel, a, float(phase), step, resolution)
+    if method == "auto" and supports_pieces(wheel, rail):
+        return _tabulate_wheel_pieces(wheel, rail, a, b, float(phase), dx, resolution)
     if polyline:
         step = float(dx) if dx is not None else min(resolution, 1e-3)
     else:
@@ -1168,6 +1269,41 @@ def tabulate_constraint(
         wp, th, dr, rp, rxs, rys, st, gmax = _general_args(wheel, rail)
         args = (float(phase), _dpsi(wheel, rail), gmax, wp, th, dr, rp, rxs, rys, st)
         nodes = _tabulate_general(x0, x1, nint, periodic > 0, args)
+    return _table_from_nodes(nodes, periodic, resolution, step)
+
+
+def _tabulate_wheel_pieces(
+    wheel: WheelOutline,
+    rail: RailProfile,
+    a: float,
+    b: float,
+    phase: float,
+    dx: float | None,
+    resolution: float,
+) -> ConstraintTable:
+    """An out-of-round wheel on a flat or cosine rail by the piece sweep (sim_core.constraint_wheel_pieces)."""
+    R = wheel.nominal_radius
+    step = float(dx) if dx is not None else min(resolution, 2e-3)
+    periodic = TWO_PI * R if rail.kind == "flat" else 0.0
+    if periodic > 0:
+        x0, x1 = a, a + periodic
+    else:
+        margin = 0.01 + 2.0 * step
+        x0, x1 = a - margin, b + margin
+    nint = max(math.ceil((x1 - x0) / step), 4)
+    pn = tabulate_pieces(wheel, rail, x0, x1, nint, phase, HERMITE_TOL)
+    nodes = np.zeros((pn.shape[0], _NCOL))
+    nodes[:, _X] = pn[:, PN_X]
+    nodes[:, _V] = pn[:, PN_V]
+    nodes[:, _SL] = pn[:, PN_SL]
+    nodes[:, _SR] = pn[:, PN_SR]
+    nodes[:, _XD] = pn[:, PN_XD]
+    nodes[:, _K] = pn[:, PN_K]
+    if periodic > 0:
+        # both ends are the same point: the left slope comes from the last node, the right from the first
+        nodes[0, _SL] = nodes[-1, _SL]
+        nodes[-1, _SR] = nodes[0, _SR]
+        nodes[0, _K] = max(nodes[0, _K], nodes[-1, _K])
     return _table_from_nodes(nodes, periodic, resolution, step)
 
 
@@ -1201,13 +1337,21 @@ def profile_constraint(rail: RailProfile, x_start: float, x_end: float) -> Const
         s = -amp * k * np.sin(k * x)
         s[-1] = s[0]
         return ConstraintTable(
-            x=x, y=y, slope_left=s, slope_right=s.copy(), contact_x=x.copy(),
-            kinks=np.empty(0), period=lam, resolution=res,
+            x=x,
+            y=y,
+            slope_left=s,
+            slope_right=s.copy(),
+            contact_x=x.copy(),
+            kinks=np.empty(0),
+            period=lam,
+            resolution=res,
         )
     margin = 0.01
     xs = rail.x
     inside = (xs > a - margin) & (xs < b + margin)
-    xn = np.concatenate(([min(a - margin, xs[0]) - 1e-3], xs[inside], [max(b + margin, xs[-1]) + 1e-3]))
+    xn = np.concatenate(
+        ([min(a - margin, xs[0]) - 1e-3], xs[inside], [max(b + margin, xs[-1]) + 1e-3])
+    )
     yn = rail.height(xn)
     seg = np.diff(yn) / np.diff(xn)
     sl = np.concatenate(([0.0], seg))
@@ -1215,12 +1359,20 @@ def profile_constraint(rail: RailProfile, x_start: float, x_end: float) -> Const
     kink = sl != sr
     kink[0] = kink[-1] = False
     return ConstraintTable(
-        x=xn, y=yn, slope_left=sl, slope_right=sr, contact_x=xn.copy(),
-        kinks=xn[kink].copy(), period=0.0, resolution=res,
+        x=xn,
+        y=yn,
+        slope_left=sl,
+        slope_right=sr,
+        contact_x=xn.copy(),
+        kinks=xn[kink].copy(),
+        period=0.0,
+        resolution=res,
     )
 
 
-def amplitude_spectrum(table: ConstraintTable, x_start: float, length: float, n_harmonics: int) -> NDArray[np.float64]:
+def amplitude_spectrum(
+    table: ConstraintTable, x_start: float, length: float, n_harmonics: int
+) -> NDArray[np.float64]:
     """One-sided harmonic amplitudes of y_C^k over [x_start, x_start + length] (m).
 
     ``length`` is taken as the fundamental period (λ for a cosine rail, 2πR for
@@ -1244,7 +1396,9 @@ def amplitude_spectrum(table: ConstraintTable, x_start: float, length: float, n_
     return np.asarray(amp)
 
 
-def _hamrock_brewe_coefficient(rx: NDArray[np.float64], ry: NDArray[np.float64]) -> NDArray[np.float64]:
+def _hamrock_brewe_coefficient(
+    rx: NDArray[np.float64], ry: NDArray[np.float64]
+) -> NDArray[np.float64]:
     """C/(2E*) of an elliptical Hertz contact (Hamrock & Brewe 1983 approximations)."""
     big = np.maximum(rx, ry)
     small = np.minimum(rx, ry)
@@ -1287,7 +1441,9 @@ def curvature_stiffness_scale(
     if not (math.isfinite(R) and R > 0):
         raise ValueError(f"curvature stiffness: radius must be positive (m), got {radius!r}")
     if not (0 < min_radius < max_radius):
-        raise ValueError(f"curvature stiffness: need 0 < min_radius < max_radius, got {min_radius!r}, {max_radius!r}")
+        raise ValueError(
+            f"curvature stiffness: need 0 < min_radius < max_radius, got {min_radius!r}, {max_radius!r}"
+        )
     kappa = rail.curvature(table.contact_x)
     curv = 1.0 / R + kappa
     with np.errstate(divide="ignore"):

@@ -1,0 +1,795 @@
+"""Fast exact y_C^k for out-of-round wheels on flat and gentle cosine rails: a sweep over the wheel's pieces.
+
+The wheel outline is cut into *pieces* in θ on which r(θ) is one smooth formula:
+
+- a sampled outline: one piece per sample interval, r = r_i + b_i·(θ - θ_i);
+- an ideal flat: the chord r = (R - d)/cos θ and the rest of the circle;
+- a rounded (haversine) flat: the haversine cut at its inflections (where the outline's
+  curvature r² + 2r'² - r·r'' changes sign) and the rest of the circle.
+
+Each piece is marked convex or concave (the sign of the outline's curvature). On a smooth
+rail (flat or cosine) the objective of MODEL.md §2 restricted to one piece,
+
+    G(ψ) = y_r(x + ρ sin ψ) + ρ cos ψ - R,  ρ = r(ψ + φ),
+
+is unimodal on a convex piece (its maximum is where G' = 0, found by safeguarded Newton
+with analytic G'', or at an end) and has its maximum at an end on a concave piece.
+y_C^k(x) is the maximum over the pieces; the winner is a *feature*:
+
+- ``2g``: the interior of piece g (the contact point slides along it; slope by the
+  envelope theorem at fixed ψ);
+- ``2g + 1``: the vertex between pieces g and g + 1 (the wheel pivots on it; slope at
+  fixed θ).
+
+Pieces are numbered g over all turns (piece k of turn m is g = m·n + k), so a feature
+identifies the wheel point uniquely along the stretch.
+
+A per-position *global solve* evaluates the pieces around ψ = 0 in order of |ψ| and stops
+where the upper bound ``max rail + max bulge - R(1 - cos ψ)`` cannot beat the best so far
+(each piece is skipped by the same bound with its own bulge). Between two nodes whose
+features differ, the change is located on closed forms: between a piece's interior and its
+end vertex by the root of G'(vertex) (tangent handover, C¹: a node without kink), between
+anything else by the root of the difference of the two pieces' maxima (a kink, slopes of
+both features). A third feature on top at the located point splits the interval. Between
+nodes of the same feature, the midpoint is solved globally (a missed feature splits it)
+and compared with the cubic Hermite interpolant; misses above ``hermite_tol`` split it.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from sim_core.rail import RAIL_COSINE, RAIL_FLAT, RailProfile
+from sim_core.wheel import TWO_PI, WheelOutline
+
+__all__ = [
+    "PIECE_ARC",
+    "PIECE_CHORD",
+    "PIECE_HAVERSINE",
+    "PIECE_LINEAR",
+    "supports",
+    "tabulate_pieces",
+    "wheel_pieces",
+]
+
+PIECE_LINEAR = 0
+PIECE_CHORD = 1
+PIECE_HAVERSINE = 2
+PIECE_ARC = 3
+
+TIE = 1e-18
+"""Values (m) of two features closer than this are a tie (the change is at that end)."""
+
+# columns of the piece table
+_T0, _T1, _KIND, _C0, _C1, _CEN, _CONC, _DRMAX = range(8)
+_NP = 8
+
+# columns of the returned nodes
+N_X, N_V, N_SL, N_SR, N_XD, N_K = range(6)
+
+
+def supports(wheel: WheelOutline, rail: RailProfile) -> bool:
+    """True if the piece sweep applies (G unimodal on every convex piece).
+
+    Any out-of-round wheel on a flat rail; a sampled wheel (pieces curved like the
+    wheel, 1/R) on a cosine whose curvature a(2π/λ)² is at most ``0.1/R``. A flat's
+    chord (straight) or a haversine near its inflections on a curved rail is not
+    unimodal: those keep the general ψ-search.
+    """
+    if wheel.kind == "round":
+        return False
+    if rail.kind == "flat":
+        return True
+    if rail.kind == "cosine" and wheel.kind == "sampled":
+        k = TWO_PI / rail.wavelength
+        return abs(rail.amplitude) * k * k <= 0.1 / wheel.nominal_radius
+    return False
+
+
+def _haversine_inflections(R: float, ln: float, d: float) -> list[float]:
+    """θ > 0 inside the haversine where the outline's curvature r² + 2r'² - r·r'' changes sign."""
+    w = TWO_PI * R / ln
+    half = 0.5 * ln / R
+
+    def curv(t: float) -> float:
+        r = R - 0.5 * d * (1.0 + math.cos(w * t))
+        r1 = 0.5 * d * w * math.sin(w * t)
+        r2 = 0.5 * d * w * w * math.cos(w * t)
+        return r * r + 2.0 * r1 * r1 - r * r2
+
+    ts = np.linspace(0.0, half, 2049)
+    cs = [curv(float(t)) for t in ts]
+    out = []
+    for i in range(ts.size - 1):
+        if (cs[i] < 0.0) != (cs[i + 1] < 0.0):
+            lo, hi = float(ts[i]), float(ts[i + 1])
+            for _ in range(200):
+                m = 0.5 * (lo + hi)
+                if m <= lo or m >= hi:
+                    break
+                if (curv(m) < 0.0) == (cs[i] < 0.0):
+                    lo = m
+                else:
+                    hi = m
+            out.append(0.5 * (lo + hi))
+    return out
+
+
+def wheel_pieces(wheel: WheelOutline) -> NDArray[np.float64]:
+    """The piece table (rows: θ0, θ1, kind, c0, c1, centre, concave, max r - R) of one turn.
+
+    The pieces are contiguous and cover exactly one turn from the first θ0.
+    """
+    R = wheel.nominal_radius
+    rows: list[list[float]] = []
+    if wheel.kind == "sampled":
+        th = np.append(wheel.theta, wheel.theta[0] + TWO_PI)
+        dr = np.append(wheel.offsets, wheel.offsets[0])
+        b = np.diff(dr) / np.diff(th)
+        for i in range(th.size - 1):
+            rows.append(
+                [th[i], th[i + 1], PIECE_LINEAR, dr[i], b[i], 0.0, 0.0, max(dr[i], dr[i + 1])]
+            )
+    elif wheel.kind == "ideal_flat":
+        t0 = wheel.flat_half_angle
+        rows.append([-t0, t0, PIECE_CHORD, wheel.flat_depth, 0.0, 0.0, 0.0, 0.0])
+        rows.append([t0, TWO_PI - t0, PIECE_ARC, 0.0, 0.0, 0.0, 0.0, 0.0])
+    elif wheel.kind == "rounded_flat":
+        ln, d = wheel.flat_length, wheel.flat_depth
+        half = 0.5 * ln / R
+        cuts = sorted(
+            {-half, half, *(s * t for t in _haversine_inflections(R, ln, d) for s in (-1.0, 1.0))}
+        )
+        w = TWO_PI * R / ln
+        for a, c in itertools.pairwise(cuts):
+            m = 0.5 * (a + c)
+            r = R - 0.5 * d * (1.0 + math.cos(w * m))
+            r1 = 0.5 * d * w * math.sin(w * m)
+            r2 = 0.5 * d * w * w * math.cos(w * m)
+            conc = 1.0 if r * r + 2.0 * r1 * r1 - r * r2 < 0.0 else 0.0
+            rows.append([a, c, PIECE_HAVERSINE, d, ln, 0.0, conc, 0.0])
+        rows.append([half, TWO_PI - half, PIECE_ARC, 0.0, 0.0, 0.0, 0.0, 0.0])
+    else:
+        raise ValueError(f"constraint pieces: no pieces for a {wheel.kind!r} wheel")
+    # the round part turns by almost 2π: cut it into arcs of at most π/4 (G is unimodal on each)
+    out: list[list[float]] = []
+    for row in rows:
+        if row[2] == PIECE_ARC:
+            m = math.ceil((row[1] - row[0]) / (0.25 * math.pi))
+            edges = np.linspace(row[0], row[1], m + 1)
+            for a, c in itertools.pairwise(edges):
+                out.append([float(a), float(c), *row[2:]])
+        else:
+            out.append(row)
+    return np.array(out, dtype=np.float64)
+
+
+# ======================================================================================
+# compiled kernels
+# ======================================================================================
+@numba.njit(cache=True, inline="always")
+def _shift(g: int, n: int) -> tuple[int, float]:
+    m = g // n
+    return g - m * n, TWO_PI * m
+
+
+@numba.njit(cache=True)
+def _rho(P: NDArray[np.float64], k: int, R: float, u: float) -> tuple[float, float, float]:
+    """(r - R, r', r'') of piece k at the wheel angle u (within the base turn)."""
+    kind = int(P[k, _KIND])
+    if kind == PIECE_LINEAR:
+        return P[k, _C0] + P[k, _C1] * (u - P[k, _T0]), P[k, _C1], 0.0
+    if kind == PIECE_CHORD:
+        t = u - P[k, _CEN]
+        s = math.sin(0.5 * t)
+        c = math.cos(t)
+        dr = (2.0 * R * s * s - P[k, _C0]) / c
+        tn = math.tan(t)
+        rho = R + dr
+        return dr, rho * tn, rho * (1.0 + 2.0 * tn * tn)
+    if kind == PIECE_HAVERSINE:
+        t = u - P[k, _CEN]
+        w = TWO_PI * R / P[k, _C1]
+        hd = 0.5 * P[k, _C0]
+        return -hd * (1.0 + math.cos(w * t)), hd * w * math.sin(w * t), hd * w * w * math.cos(w * t)
+    return 0.0, 0.0, 0.0
+
+
+@numba.njit(cache=True, inline="always")
+def _rail(rc: int, ra: float, rl: float, x: float) -> tuple[float, float, float]:
+    if rc == RAIL_COSINE:
+        k = TWO_PI / rl
+        c = math.cos(k * x)
+        s = math.sin(k * x)
+        return ra * c, -ra * k * s, -ra * k * k * c
+    return 0.0, 0.0, 0.0
+
+
+@numba.njit(cache=True)
+def _obj(
+    P: NDArray[np.float64],
+    k: int,
+    R: float,
+    rc: int,
+    ra: float,
+    rl: float,
+    x: float,
+    psi: float,
+    u: float,
+) -> tuple[float, float, float, float, float, float, float]:
+    """(G, G', G'', x_D, r - R, r', y_r') of piece k at angle ψ, wheel angle u = ψ + φ (base turn)."""
+    dr, r1, r2 = _rho(P, k, R, u)
+    rho = R + dr
+    sp = math.sin(psi)
+    cp = math.cos(psi)
+    sh = math.sin(0.5 * psi)
+    xd = x + rho * sp
+    if rc == RAIL_FLAT:
+        g = dr * cp - 2.0 * R * sh * sh
+        gp = r1 * cp - rho * sp
+        gpp = r2 * cp - 2.0 * r1 * sp - rho * cp
+        return g, gp, gpp, xd, dr, r1, 0.0
+    y, y1, y2 = _rail(rc, ra, rl, xd)
+    a = r1 * sp + rho * cp
+    da = r2 * sp + 2.0 * r1 * cp - rho * sp
+    g = y + dr * cp - 2.0 * R * sh * sh
+    gp = y1 * a + r1 * cp - rho * sp
+    gpp = y2 * a * a + y1 * da + r2 * cp - 2.0 * r1 * sp - rho * cp
+    return g, gp, gpp, xd, dr, r1, y1
+
+
+@numba.njit(cache=True, inline="always")
+def _slope_interior(R: float, psi: float, r1: float, y1: float) -> float:
+    return y1 * (1.0 + r1 * math.sin(psi) / R) + r1 * math.cos(psi) / R
+
+
+@numba.njit(cache=True, inline="always")
+def _slope_vertex(R: float, psi: float, dr: float, y1: float) -> float:
+    rho = R + dr
+    return y1 * (1.0 - rho * math.cos(psi) / R) + rho * math.sin(psi) / R
+
+
+@numba.njit(cache=True)
+def _vertex(
+    P: NDArray[np.float64],
+    n: int,
+    R: float,
+    rc: int,
+    ra: float,
+    rl: float,
+    v: int,
+    x: float,
+    phi: float,
+) -> tuple[float, float, float]:
+    """(value, slope, x_D) of vertex feature v = 2g + 1 (the hi end of piece g) at x."""
+    g = (v - 1) // 2
+    k, sh = _shift(g, n)
+    u = P[k, _T1]
+    psi = u + sh - phi
+    G, _, _, xd, dr, _, y1 = _obj(P, k, R, rc, ra, rl, x, psi, u)
+    return G, _slope_vertex(R, psi, dr, y1), xd
+
+
+@numba.njit(cache=True)
+def _interior(
+    P: NDArray[np.float64],
+    n: int,
+    R: float,
+    rc: int,
+    ra: float,
+    rl: float,
+    g: int,
+    x: float,
+    phi: float,
+    lo: float,
+    hi: float,
+) -> tuple[float, float, float, float]:
+    """(value, slope, x_D, ψ) at the root of G' of piece g in (lo, hi) (G'(lo) > 0 > G'(hi)); safeguarded Newton."""
+    k, sh = _shift(g, n)
+    a, b = lo, hi
+    psi = 0.5 * (lo + hi)
+    # the outline is nearly round: G'' ≈ -R; start from the tangent estimate
+    G, gp, gpp, xd, _dr, r1, y1 = _obj(P, k, R, rc, ra, rl, x, psi, psi + phi - sh)
+    for _ in range(60):
+        if gp > 0.0:
+            a = psi
+        else:
+            b = psi
+        nxt = psi - gp / gpp if gpp < 0.0 else 0.5 * (a + b)
+        if not (a < nxt < b):
+            nxt = 0.5 * (a + b)
+        if abs(nxt - psi) <= 1e-16 * (1.0 + abs(psi)) or b - a <= 4e-16:
+            psi = nxt
+            G, gp, gpp, xd, _dr, r1, y1 = _obj(P, k, R, rc, ra, rl, x, psi, psi + phi - sh)
+            break
+        psi = nxt
+        G, gp, gpp, xd, _dr, r1, y1 = _obj(P, k, R, rc, ra, rl, x, psi, psi + phi - sh)
+        if gp == 0.0:
+            break
+    return G, _slope_interior(R, psi, r1, y1), xd, psi
+
+
+@numba.njit(cache=True)
+def _pmax(
+    P: NDArray[np.float64],
+    n: int,
+    R: float,
+    rc: int,
+    ra: float,
+    rl: float,
+    g: int,
+    x: float,
+    phi: float,
+) -> tuple[float, int, float, float]:
+    """(max over piece g, feature, slope, x_D) at x."""
+    k, sh = _shift(g, n)
+    u0 = P[k, _T0]
+    u1 = P[k, _T1]
+    lo = u0 + sh - phi
+    hi = u1 + sh - phi
+    if rc == RAIL_FLAT and int(P[k, _KIND]) == PIECE_LINEAR:
+        # G' = b cos ψ - ρ sin ψ: the maximum is at tan ψ = b/ρ(ψ + φ) (a contraction, factor
+        # (b/ρ)² ~ 1e-5) clamped to the piece (G is unimodal on it)
+        b = P[k, _C1]
+        c0 = P[k, _C0] - b * u0
+        psi = 0.0
+        for _ in range(3):
+            psi = math.atan2(b, R + c0 + b * (psi + phi - sh))
+        if psi <= lo:
+            psi = lo
+            f = 2 * g - 1
+        elif psi >= hi:
+            psi = hi
+            f = 2 * g + 1
+        else:
+            f = 2 * g
+        dr = c0 + b * (psi + phi - sh) if f == 2 * g else (P[k, _C0] if f < 2 * g else c0 + b * u1)
+        sp = math.sin(psi)
+        s2 = math.sin(0.5 * psi)
+        cp = 1.0 - 2.0 * s2 * s2
+        G = dr * cp - 2.0 * R * s2 * s2
+        if f == 2 * g:
+            return G, f, b * cp / R, x + (R + dr) * sp
+        return G, f, (R + dr) * sp / R, x + (R + dr) * sp
+    G0, gp0, _, xd0, dr0, _, y10 = _obj(P, k, R, rc, ra, rl, x, lo, u0)
+    G1, gp1, _, xd1, dr1, _, y11 = _obj(P, k, R, rc, ra, rl, x, hi, u1)
+    if P[k, _CONC] > 0.0 or gp0 <= 0.0 or gp1 >= 0.0:
+        if G0 >= G1:
+            return G0, 2 * g - 1, _slope_vertex(R, lo, dr0, y10), xd0
+        return G1, 2 * g + 1, _slope_vertex(R, hi, dr1, y11), xd1
+    G, s, xd, _ = _interior(P, n, R, rc, ra, rl, g, x, phi, lo, hi)
+    return G, 2 * g, s, xd
+
+
+@numba.njit(cache=True)
+def _piece_of(P: NDArray[np.float64], n: int, theta: float, hint: int) -> int:
+    """The global piece g whose θ range holds θ (walking from ``hint``)."""
+    g = hint
+    for _ in range(4 * n + 8):
+        k, sh = _shift(g, n)
+        if P[k, _T0] + sh > theta:
+            g -= 1
+        elif P[k, _T1] + sh <= theta:
+            g += 1
+        else:
+            return g
+    return g
+
+
+@numba.njit(cache=True, inline="always")
+def _drop(psi: float, R: float) -> float:
+    """A lower bound of R(1 - cos ψ)."""
+    p2 = psi * psi
+    return R * p2 * (0.5 - p2 / 24.0)
+
+
+@numba.njit(cache=True)
+def _global(
+    P: NDArray[np.float64],
+    n: int,
+    R: float,
+    rc: int,
+    ra: float,
+    rl: float,
+    phase: float,
+    drg: float,
+    x: float,
+    hint: int,
+) -> tuple[float, int, float, float, int]:
+    """(y_C^k, feature, slope, x_D, piece under the centre) at x: all pieces that can win."""
+    phi = phase + x / R
+    g0 = _piece_of(P, n, phi, hint)
+    ymax = abs(ra) if rc == RAIL_COSINE else 0.0
+    best, bf, bs, bx = _pmax(P, n, R, rc, ra, rl, g0, x, phi)
+    for direction in (1, -1):
+        g = g0 + direction
+        for _ in range(n):
+            k, sh = _shift(g, n)
+            pm = P[k, _T0] + sh - phi if direction > 0 else phi - P[k, _T1] - sh
+            if pm > 1.5:
+                break
+            dp = _drop(pm, R)
+            if ymax + drg - dp < best:
+                break
+            dm = P[k, _DRMAX]
+            top = dm if dm >= 0.0 else 0.5 * dm
+            if ymax + top - dp >= best:
+                v, f, s, xd = _pmax(P, n, R, rc, ra, rl, g, x, phi)
+                if v > best:
+                    best, bf, bs, bx = v, f, s, xd
+            g += direction
+    return best, bf, bs, bx, g0
+
+
+@numba.njit(cache=True)
+def _feature(
+    P: NDArray[np.float64],
+    n: int,
+    R: float,
+    rc: int,
+    ra: float,
+    rl: float,
+    phase: float,
+    f: int,
+    x: float,
+) -> tuple[float, float, float, int]:
+    """(value, slope, x_D, feature actually taken) of feature f's piece group at x.
+
+    A vertex's group is its two pieces, an interior's group its piece: the maximum over the
+    group (continuous and piecewise smooth in x), with the feature that attains it.
+    """
+    phi = phase + x / R
+    if f % 2 == 0:
+        v, ff, s, xd = _pmax(P, n, R, rc, ra, rl, f // 2, x, phi)
+        return v, s, xd, ff
+    g = (f - 1) // 2
+    v, ff, s, xd = _pmax(P, n, R, rc, ra, rl, g, x, phi)
+    v2, f2, s2, xd2 = _pmax(P, n, R, rc, ra, rl, g + 1, x, phi)
+    if v2 > v:
+        return v2, s2, xd2, f2
+    return v, s, xd, ff
+
+
+@numba.njit(cache=True)
+def _edge_dg(
+    P: NDArray[np.float64],
+    n: int,
+    R: float,
+    rc: int,
+    ra: float,
+    rl: float,
+    phase: float,
+    g: int,
+    hi_end: bool,
+    x: float,
+) -> float:
+    """G' of piece g at its end (hi or lo) at x: the interior ↔ end vertex handover is its root."""
+    phi = phase + x / R
+    k, sh = _shift(g, n)
+    u = P[k, _T1] if hi_end else P[k, _T0]
+    _, gp, _, _, _, _, _ = _obj(P, k, R, rc, ra, rl, x, u + sh - phi, u)
+    return gp
+
+
+@numba.njit(cache=True)
+def _root_edge(
+    P: NDArray[np.float64],
+    n: int,
+    R: float,
+    rc: int,
+    ra: float,
+    rl: float,
+    phase: float,
+    g: int,
+    hi_end: bool,
+    xa: float,
+    xb: float,
+) -> float:
+    """Root of :func:`_edge_dg` in [xa, xb] (Illinois false position, then bisection); nan if no sign change."""
+    k, sh = _shift(g, n)
+    if rc == RAIL_FLAT and int(P[k, _KIND]) == PIECE_LINEAR:
+        # G' = b cos ψ - ρ sin ψ = 0: ψ = atan(b/ρ) at the vertex, φ = θ_v - ψ
+        u = P[k, _T1] if hi_end else P[k, _T0]
+        dr = P[k, _C0] + P[k, _C1] * (u - P[k, _T0])
+        xt = R * (u + sh - math.atan2(P[k, _C1], R + dr) - phase)
+        if xa <= xt <= xb:
+            return xt
+    fa = _edge_dg(P, n, R, rc, ra, rl, phase, g, hi_end, xa)
+    fb = _edge_dg(P, n, R, rc, ra, rl, phase, g, hi_end, xb)
+    if fa == 0.0:
+        return xa
+    if fb == 0.0:
+        return xb
+    if (fa > 0.0) == (fb > 0.0):
+        return math.nan
+    a, b = xa, xb
+    side = 0
+    for _ in range(200):
+        if b - a <= 2e-16 * max(1.0, abs(a)):
+            break
+        m = (a * fb - b * fa) / (fb - fa)
+        if not (a < m < b):
+            m = 0.5 * (a + b)
+        fm = _edge_dg(P, n, R, rc, ra, rl, phase, g, hi_end, m)
+        if fm == 0.0:
+            return m
+        if (fm > 0.0) == (fa > 0.0):
+            a, fa = m, fm
+            if side == -1:
+                fb *= 0.5
+            side = -1
+        else:
+            b, fb = m, fm
+            if side == 1:
+                fa *= 0.5
+            side = 1
+    return 0.5 * (a + b)
+
+
+@numba.njit(cache=True)
+def _root_cross(
+    P: NDArray[np.float64],
+    n: int,
+    R: float,
+    rc: int,
+    ra: float,
+    rl: float,
+    phase: float,
+    fA: int,
+    fB: int,
+    xa: float,
+    xb: float,
+) -> float:
+    """Where feature group B overtakes group A in [xa, xb]; nan if the difference keeps its sign."""
+    va = (
+        _feature(P, n, R, rc, ra, rl, phase, fA, xa)[0]
+        - _feature(P, n, R, rc, ra, rl, phase, fB, xa)[0]
+    )
+    vb = (
+        _feature(P, n, R, rc, ra, rl, phase, fA, xb)[0]
+        - _feature(P, n, R, rc, ra, rl, phase, fB, xb)[0]
+    )
+    if va <= TIE:
+        return xa if va >= -TIE else math.nan
+    if vb >= -TIE:
+        return xb if vb <= TIE else math.nan
+    a, b = xa, xb
+    m = (a * vb - b * va) / (vb - va)
+    for _ in range(100):
+        if not (a < m < b):
+            m = 0.5 * (a + b)
+        fa_ = _feature(P, n, R, rc, ra, rl, phase, fA, m)
+        fb_ = _feature(P, n, R, rc, ra, rl, phase, fB, m)
+        vm = fa_[0] - fb_[0]
+        if vm == 0.0:
+            return m
+        if vm > 0.0:
+            a = m
+        else:
+            b = m
+        if b - a <= 2e-16 * max(1.0, abs(a)):
+            break
+        dm = fa_[1] - fb_[1]
+        step = -vm / dm if dm != 0.0 else math.inf
+        nxt = m + step
+        if abs(step) <= 1e-16 * max(1.0, abs(m)):
+            return nxt if a <= nxt <= b else m
+        m = nxt
+    return 0.5 * (a + b)
+
+
+@numba.njit(cache=True)
+def _grow_f(a: NDArray[np.float64], n: int) -> NDArray[np.float64]:
+    if n < a.shape[0]:
+        return a
+    b = np.empty((2 * a.shape[0] + 64, a.shape[1]))
+    b[: a.shape[0]] = a
+    return b
+
+
+@numba.njit(cache=True)
+def _grow_i(a: NDArray[np.int64], n: int) -> NDArray[np.int64]:
+    if n < a.shape[0]:
+        return a
+    b = np.empty((2 * a.shape[0] + 64, a.shape[1]), np.int64)
+    b[: a.shape[0]] = a
+    return b
+
+
+@numba.njit(cache=True, nogil=True)
+def tabulate_pieces_kernel(
+    P: NDArray[np.float64],
+    R: float,
+    rc: int,
+    ra: float,
+    rl: float,
+    phase: float,
+    x0: float,
+    x1: float,
+    nint: int,
+    hermite_tol: float,
+) -> NDArray[np.float64]:
+    """Nodes (rows: x, y, slope left, slope right, x_D, kink flag) over [x0, x1], sorted by x."""
+    n = P.shape[0]
+    drg = P[:, _DRMAX].max()
+    nodes = np.empty((4 * nint + 64, 6))
+    feats = np.empty((4 * nint + 64, 3), np.int64)  # feature left, feature right, piece hint
+    nn = 0
+    h0 = (x1 - x0) / nint
+    hint = _piece_of(P, n, phase + x0 / R, 0 if phase + x0 / R >= P[0, _T0] else -1)
+    # ---------------------------------------------------------------- grid
+    for i in range(nint + 1):
+        xv = x0 + i * h0 if i < nint else x1
+        v, f, s, xd, g0 = _global(P, n, R, rc, ra, rl, phase, drg, xv, hint)
+        hint = g0
+        nodes[nn, N_X] = xv
+        nodes[nn, N_V] = v
+        nodes[nn, N_SL] = s
+        nodes[nn, N_SR] = s
+        nodes[nn, N_XD] = xd
+        nodes[nn, N_K] = 0.0
+        feats[nn, 0] = f
+        feats[nn, 1] = f
+        feats[nn, 2] = g0
+        nn += 1
+    # ---------------------------------------------------------------- intervals
+    stack = np.empty((nn + 64, 3), np.int64)
+    ns = 0
+    for i in range(nn - 2, -1, -1):
+        stack[ns, 0] = i
+        stack[ns, 1] = i + 1
+        stack[ns, 2] = 0
+        ns += 1
+    guard = 0
+    while ns > 0 and guard < 50_000_000:
+        guard += 1
+        ns -= 1
+        ia = stack[ns, 0]
+        ib = stack[ns, 1]
+        retry = stack[ns, 2]
+        xa = nodes[ia, N_X]
+        xb = nodes[ib, N_X]
+        h = xb - xa
+        scale = max(1.0, abs(xa))
+        if h <= 4e-13 * scale:
+            continue
+        fA = feats[ia, 1]
+        fB = feats[ib, 0]
+        hint = feats[ia, 2]
+        # the new node: x, value, slopes, x_D, features, kink
+        xn = math.nan
+        vn = sl = sr = xdn = kn = 0.0
+        fl = fr = 0
+        if fA != fB:
+            xt = math.nan
+            if abs(fA - fB) == 1:
+                # tangent handover between a piece's interior and its end vertex
+                g = fA // 2 if fA % 2 == 0 else fB // 2
+                vtx = fB if fA % 2 == 0 else fA
+                xt = _root_edge(P, n, R, rc, ra, rl, phase, g, vtx == 2 * g + 1, xa, xb)
+                if not math.isnan(xt):
+                    vv, ss, xdv = _vertex(P, n, R, rc, ra, rl, vtx, xt, phase + xt / R)
+                    vg, fg, sg, xdg, g0 = _global(P, n, R, rc, ra, rl, phase, drg, xt, hint)
+                    if fg != fA and fg != fB and vg > vv + 1e-15:
+                        xn, vn, sl, sr, xdn, fl, fr = xt, vg, sg, sg, xdg, fg, fg
+                    else:
+                        xn, vn, sl, sr, xdn, fl, fr = xt, vv, ss, ss, xdv, fA, fB
+                    hint = g0
+            if math.isnan(xn):
+                xt = _root_cross(P, n, R, rc, ra, rl, phase, fA, fB, xa, xb)
+                if not math.isnan(xt):
+                    va, sa, _, ffa = _feature(P, n, R, rc, ra, rl, phase, fA, xt)
+                    vb, sb, xdb, ffb = _feature(P, n, R, rc, ra, rl, phase, fB, xt)
+                    vg, fg, sg, xdg, g0 = _global(P, n, R, rc, ra, rl, phase, drg, xt, hint)
+                    hint = g0
+                    top = max(va, vb)
+                    if fg != ffa and fg != ffb and vg > top + 1e-15:
+                        xn, vn, sl, sr, xdn, fl, fr = xt, vg, sg, sg, xdg, fg, fg
+                    else:
+                        xn, vn, sl, sr, xdn, fl, fr = xt, top, sa, sb, xdb, ffa, ffb
+                        kn = 1.0
+            if not math.isnan(xn) and xn <= xa and fr != fA and retry < 4:
+                # the change is at xa itself: it becomes the right side of node ia
+                if kn > 0.0:
+                    nodes[ia, N_SR] = sr
+                    nodes[ia, N_K] = 1.0
+                nodes[ia, N_XD] = xdn
+                feats[ia, 1] = fr
+                stack = _grow_i(stack, ns + 1)
+                stack[ns, 0] = ia
+                stack[ns, 1] = ib
+                stack[ns, 2] = retry + 1
+                ns += 1
+                continue
+            if not math.isnan(xn) and xn >= xb and fl != fB and retry < 4:
+                if kn > 0.0:
+                    nodes[ib, N_SL] = sl
+                    nodes[ib, N_K] = 1.0
+                feats[ib, 0] = fl
+                stack = _grow_i(stack, ns + 1)
+                stack[ns, 0] = ia
+                stack[ns, 1] = ib
+                stack[ns, 2] = retry + 1
+                ns += 1
+                continue
+            if math.isnan(xn) or not (xa < xn < xb):
+                if h <= 1e-12 * scale:
+                    continue
+                # no closed-form change found: split at the midpoint
+                xn = 0.5 * (xa + xb)
+                vg, fg, sg, xdg, g0 = _global(P, n, R, rc, ra, rl, phase, drg, xn, hint)
+                vn, sl, sr, xdn, fl, fr, kn, hint = vg, sg, sg, xdg, fg, fg, 0.0, g0
+        elif h > 4.0 * 4e-13 * scale:
+            m = 0.5 * (xa + xb)
+            vg, fg, sg, xdg, g0 = _global(P, n, R, rc, ra, rl, phase, drg, m, hint)
+            hm = 0.5 * (nodes[ia, N_V] + nodes[ib, N_V]) + 0.125 * h * (
+                nodes[ia, N_SR] - nodes[ib, N_SL]
+            )
+            if fg != fA or abs(vg - hm) > hermite_tol:
+                xn, vn, sl, sr, xdn, fl, fr, hint = m, vg, sg, sg, xdg, fg, fg, g0
+            else:
+                continue
+        else:
+            continue
+        nodes = _grow_f(nodes, nn + 1)
+        feats = _grow_i(feats, nn + 1)
+        nodes[nn, N_X] = xn
+        nodes[nn, N_V] = vn
+        nodes[nn, N_SL] = sl
+        nodes[nn, N_SR] = sr
+        nodes[nn, N_XD] = xdn
+        nodes[nn, N_K] = kn
+        feats[nn, 0] = fl
+        feats[nn, 1] = fr
+        feats[nn, 2] = hint
+        ic = nn
+        nn += 1
+        stack = _grow_i(stack, ns + 2)
+        stack[ns, 0] = ic
+        stack[ns, 1] = ib
+        stack[ns, 2] = 0
+        stack[ns + 1, 0] = ia
+        stack[ns + 1, 1] = ic
+        stack[ns + 1, 2] = 0
+        ns += 2
+    out = nodes[:nn]
+    order = np.argsort(out[:, N_X], kind="mergesort")
+    return out[order]
+
+
+def tabulate_pieces(
+    wheel: WheelOutline,
+    rail: RailProfile,
+    x0: float,
+    x1: float,
+    nint: int,
+    phase: float,
+    hermite_tol: float,
+) -> NDArray[np.float64]:
+    """Nodes (x, y, slope left, slope right, x_D, kink flag) of y_C^k over [x0, x1] by the piece sweep.
+
+    ``nint`` grid intervals to start from (refined where needed).
+    """
+    if not supports(wheel, rail):
+        raise ValueError(
+            f"constraint pieces: not for a {wheel.kind!r} wheel on a {rail.kind!r} rail"
+        )
+    P = wheel_pieces(wheel)
+    rc, ra, rl, _, _ = rail.compiled_args()
+    return tabulate_pieces_kernel(
+        P,
+        wheel.nominal_radius,
+        rc,
+        ra,
+        rl,
+        float(phase),
+        float(x0),
+        float(x1),
+        int(nint),
+        float(hermite_tol),
+    )
