@@ -31,10 +31,6 @@ DENT_RAIL_SPACING = 5e-4
 (curvature below ~0.1 /m in Fig. 8), so chords 0.5 mm long stay within ~1e-8 m of the
 dent while the next wheel's table (a kink at every concave vertex) stays small."""
 
-MERGE_DISTANCE = 1e-6
-"""Rail samples closer than this (m) are merged when dents are pressed in, so that
-repeated passages do not pile up near-coincident vertices."""
-
 COSINE_SAMPLES_PER_WAVELENGTH = 512
 """Sampling of a cosine rail when dents turn it into a sampled one (chord error a·(π/512)²/2 ≈ 2e-5·a)."""
 
@@ -117,17 +113,45 @@ def dented_rail(
 ) -> RailProfile:
     """The rail ``rail`` with dents pressed in, as a sampled profile over [x_start, x_end].
 
-    A step rail's riser becomes a 1e-12 m ramp (a sampled rail has strictly
-    increasing x); outside [x_start, x_end] the result is flat at its end values.
+    Inside each dented stretch the rail is resampled on the fixed lattice
+    k·spacing (spacing = ``DENT_RAIL_SPACING``, or the rail's own median sample
+    spacing if finer), replacing the samples there: wheel after wheel the
+    dents land on the same lattice, so samples never crowd together (the union
+    of each pass's records once left samples 1 µm apart and tables of millions
+    of nodes). A step rail's riser becomes a 1e-12 m ramp (a sampled rail has
+    strictly increasing x); outside [x_start, x_end] the result is flat at its
+    end values.
     """
     if dents_x.size == 0 or not np.any(dents_depth > 0):
         return rail
-    dents_x, dents_depth = thin_dents(dents_x, dents_depth, DENT_RAIL_SPACING)
-    grid = np.union1d(
-        _base_grid(rail, x_start, x_end), dents_x[(dents_x > x_start) & (dents_x < x_end)]
-    )
-    keep = np.concatenate(([True], np.diff(grid) > MERGE_DISTANCE))
-    grid = grid[keep]
+    base = _base_grid(rail, x_start, x_end)
+    spacing = DENT_RAIL_SPACING
+    if rail.kind == "sampled" and rail.x.size > 2:
+        spacing = min(spacing, float(np.median(np.diff(rail.x))))
+    if rail.kind == "cosine":
+        spacing = min(spacing, rail.wavelength / COSINE_SAMPLES_PER_WAVELENGTH)
+    inside = np.concatenate(([0], (dents_depth > 0.0).astype(np.int8), [0]))
+    change = np.flatnonzero(np.diff(inside))
+    first, last = change[0::2], change[1::2] - 1
+    n = dents_x.size
+    keep_base = np.ones(base.size, dtype=bool)
+    lattice: list[NDArray[np.float64]] = []
+    riser = rail.step_position if rail.kind == "step" else np.nan
+    for i, j in zip(first, last, strict=True):
+        a = max(dents_x[max(i - 1, 0)], x_start)
+        b = min(dents_x[min(j + 1, n - 1)], x_end)
+        keep_base &= ~((base > a) & (base < b) & (np.abs(base - riser) > 1e-9))
+        k = np.arange(np.ceil(a / spacing), np.floor(b / spacing) + 1.0)
+        lattice.append(k * spacing)
+    kept = base[keep_base]
+    pts = np.concatenate(lattice) if lattice else np.empty(0)
+    if kept.size and pts.size:
+        # no lattice point crowding a sample kept outside the dents
+        pos = np.clip(np.searchsorted(kept, pts), 1, kept.size - 1)
+        gap = np.minimum(np.abs(pts - kept[pos - 1]), np.abs(pts - kept[pos]))
+        pts = pts[gap > 0.25 * spacing]
+    grid = np.union1d(kept, pts)
+    grid = grid[(grid >= x_start) & (grid <= x_end)]
     y = rail.height(grid)
     if rail.kind == "step" and x_start < rail.step_position < x_end:
         y[grid == rail.step_position - 1e-12] = 0.0
