@@ -242,7 +242,9 @@ class RailProfile:
 
 
 @numba.njit(cache=True)
-def rail_height(code: int, a: float, b: float, xs: NDArray[np.float64], ys: NDArray[np.float64], x: float) -> float:
+def rail_height(
+    code: int, a: float, b: float, xs: NDArray[np.float64], ys: NDArray[np.float64], x: float
+) -> float:
     """y_r(x) (m) of a profile given by :meth:`RailProfile.compiled_args`."""
     if code == RAIL_FLAT:
         return 0.0

@@ -47,7 +47,9 @@ def power_law_psd(
     if not (math.isfinite(level) and level >= 0):
         raise ValueError(f"power-law spectrum: level must be >= 0, got {level!r}")
     if not (math.isfinite(reference) and reference > 0):
-        raise ValueError(f"power-law spectrum: reference must be positive (rad/m), got {reference!r}")
+        raise ValueError(
+            f"power-law spectrum: reference must be positive (rad/m), got {reference!r}"
+        )
     return np.asarray(level * (reference / k) ** exponent)
 
 
@@ -64,7 +66,9 @@ def _widths(k: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 @numba.njit(cache=True)
-def _synthesise(n: int, dx: float, k: NDArray[np.float64], amp: NDArray[np.float64], ph: NDArray[np.float64]) -> NDArray[np.float64]:
+def _synthesise(
+    n: int, dx: float, k: NDArray[np.float64], amp: NDArray[np.float64], ph: NDArray[np.float64]
+) -> NDArray[np.float64]:
     """Σ amp_j cos(k_j x_i + ph_j) on x_i = i·dx by phasor rotation, re-anchored every 512 samples."""
     y = np.zeros(n)
     block = 512
@@ -109,7 +113,9 @@ def random_roughness(
             f"random roughness: wavenumbers and psd must be 1-D of equal length, got {k.shape}, {S.shape}"
         )
     if not (np.all(np.isfinite(k)) and np.all(k > 0) and np.all(np.diff(k) > 0)):
-        raise ValueError("random roughness: wavenumbers must be positive, finite and strictly increasing")
+        raise ValueError(
+            "random roughness: wavenumbers must be positive, finite and strictly increasing"
+        )
     if not (np.all(np.isfinite(S)) and np.all(S >= 0)):
         raise ValueError("random roughness: psd must be finite and >= 0")
     if k[-1] > math.pi / dx:

@@ -100,7 +100,9 @@ class WheelOutline:
         R = _check_radius(radius)
         ln = float(length)
         if not (math.isfinite(ln) and ln > 0.0):
-            raise ValueError(f"ideal flat: length must be a positive finite number (m), got {length!r}")
+            raise ValueError(
+                f"ideal flat: length must be a positive finite number (m), got {length!r}"
+            )
         if ln >= 2.0 * R:
             raise ValueError(
                 f"ideal flat: the chord length {ln!r} m must be shorter than the diameter 2R = {2 * R!r} m"
@@ -115,14 +117,18 @@ class WheelOutline:
         R = _check_radius(radius)
         ln, d = float(length), float(depth)
         if not (math.isfinite(ln) and ln > 0.0):
-            raise ValueError(f"rounded flat: length must be a positive finite number (m), got {length!r}")
+            raise ValueError(
+                f"rounded flat: length must be a positive finite number (m), got {length!r}"
+            )
         if ln >= TWO_PI * R:
             raise ValueError(
                 f"rounded flat: the flat does not fit: length {ln!r} m must be shorter than the "
                 f"circumference 2πR = {TWO_PI * R!r} m"
             )
         if not (math.isfinite(d) and d > 0.0):
-            raise ValueError(f"rounded flat: depth must be a positive finite number (m), got {depth!r}")
+            raise ValueError(
+                f"rounded flat: depth must be a positive finite number (m), got {depth!r}"
+            )
         if d >= R:
             raise ValueError(f"rounded flat: depth {d!r} m must be smaller than the radius {R!r} m")
         return cls("rounded_flat", R, ln, d)
@@ -150,9 +156,13 @@ class WheelOutline:
         if th.size < 3:
             raise ValueError(f"sampled wheel: need at least 3 samples, got {th.size}")
         if not np.all(np.isfinite(th)):
-            raise ValueError(f"sampled wheel: theta has non-finite values at indices {np.flatnonzero(~np.isfinite(th))[:5].tolist()}")
+            raise ValueError(
+                f"sampled wheel: theta has non-finite values at indices {np.flatnonzero(~np.isfinite(th))[:5].tolist()}"
+            )
         if not np.all(np.isfinite(rv)):
-            raise ValueError(f"sampled wheel: radius_values has non-finite values at indices {np.flatnonzero(~np.isfinite(rv))[:5].tolist()}")
+            raise ValueError(
+                f"sampled wheel: radius_values has non-finite values at indices {np.flatnonzero(~np.isfinite(rv))[:5].tolist()}"
+            )
         bad = np.flatnonzero(np.diff(th) <= 0.0)
         if bad.size:
             i = int(bad[0])
@@ -167,7 +177,9 @@ class WheelOutline:
             )
         if np.any(rv <= 0.0):
             i = int(np.flatnonzero(rv <= 0.0)[0])
-            raise ValueError(f"sampled wheel: radius_values must be positive, got {float(rv[i])!r} at index {i}")
+            raise ValueError(
+                f"sampled wheel: radius_values must be positive, got {float(rv[i])!r} at index {i}"
+            )
         if nominal_radius is None:
             dth = np.diff(np.append(th, th[0] + TWO_PI))
             rr = np.append(rv, rv[0])
@@ -222,7 +234,9 @@ class WheelOutline:
             return float(dth.min()) * self.radius
         return math.inf
 
-    def compiled_args(self) -> tuple[int, float, float, float, NDArray[np.float64], NDArray[np.float64]]:
+    def compiled_args(
+        self,
+    ) -> tuple[int, float, float, float, NDArray[np.float64], NDArray[np.float64]]:
         """(code, R, a, b, theta, offsets) for :func:`wheel_offset`.
 
         a, b: θ0 and d of an ideal flat, l and d of a rounded flat; for a

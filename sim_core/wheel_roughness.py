@@ -90,10 +90,17 @@ class WheelRoughness:
             raise ValueError(f"{source}: no '[MeasurementData]' section found")
         i += 1
         if i >= n:
-            raise ValueError(f"{source}: line {i + 1}: expected a units line like '[mm] [µm]', got end of file")
+            raise ValueError(
+                f"{source}: line {i + 1}: expected a units line like '[mm] [µm]', got end of file"
+            )
         units = lines[i].split()
         names = [u.strip("[]") for u in units]
-        if len(names) >= 2 and names[1] not in _UNITS and len(names[1]) in (2, 3) and names[1].endswith("m"):
+        if (
+            len(names) >= 2
+            and names[1] not in _UNITS
+            and len(names[1]) in (2, 3)
+            and names[1].endswith("m")
+        ):
             names[1] = "µm"  # the export's µ arrives in various encodings (e.g. '¦Ìm')
         if len(names) < 2 or names[0] not in _UNITS or names[1] not in _UNITS:
             raise ValueError(
@@ -134,7 +141,9 @@ class WheelRoughness:
             try:
                 nd = int(declared)
             except ValueError:
-                raise ValueError(f"{source}: header 'Measurement points' is not an integer: {declared!r}") from None
+                raise ValueError(
+                    f"{source}: header 'Measurement points' is not an integer: {declared!r}"
+                ) from None
             if nd != len(pos):
                 raise ValueError(
                     f"{source}: header declares {nd} measurement points but the data has {len(pos)} "
@@ -164,7 +173,9 @@ class WheelRoughness:
         """Depth of the deepest dip (m): -min(deviation)."""
         return float(-self.deviations.min())
 
-    def to_outline(self, nominal_radius: float | None = None, centre_flat: bool = True) -> WheelOutline:
+    def to_outline(
+        self, nominal_radius: float | None = None, centre_flat: bool = True
+    ) -> WheelOutline:
         """The sampled outline r(θ) = R + deviation(s), θ = s/R.
 
         ``nominal_radius`` defaults to circumference/2π. With ``centre_flat``
@@ -174,7 +185,9 @@ class WheelRoughness:
         C = self.circumference
         R = C / TWO_PI if nominal_radius is None else float(nominal_radius)
         if not (math.isfinite(R) and R > 0):
-            raise ValueError(f"wheel roughness: nominal_radius must be positive (m), got {nominal_radius!r}")
+            raise ValueError(
+                f"wheel roughness: nominal_radius must be positive (m), got {nominal_radius!r}"
+            )
         s = self.positions - self.positions[0]
         if centre_flat:
             s0 = s[int(np.argmin(self.deviations))]
