@@ -102,7 +102,7 @@ MAX_FACTOR = 10.0
 EVENT_OFFSET = 1e-15
 """How far (m) past a switching surface the state is put after an event."""
 
-IMPACT_FIRST_STEP = 0.008
+IMPACT_FIRST_STEP = 0.004
 """First step after a landing, as a fraction of the Hertz impact duration."""
 
 _A = dop853.A
@@ -796,19 +796,27 @@ def integrate(
             nrej += 1
             rejected = True
             factor = max(MIN_FACTOR, SAFETY * err ** (-1.0 / 8.0))
-            if mode == ELASTIC and dstage[12] < 0.0:
-                # The attempt ran past a loss of contact, where F ~ δ^(3/2) stops being
-                # smooth and the error estimate explodes. Aim the next attempt just short
-                # of the crossing the stage values bracket (linear between the last stage
-                # with δ > 0 and the end) instead of shrinking blindly.
-                c_pos = 0.0
-                d_pos = dstage[0] if dstage[0] > 0.0 else 0.0
-                for q in range(1, 12):
-                    if dstage[q] > 0.0 and _C[q] > c_pos:
-                        c_pos = _C[q]
-                        d_pos = dstage[q]
-                c_cross = c_pos + (1.0 - c_pos) * d_pos / (d_pos - dstage[12])
-                factor = max(factor, min(0.98 * c_cross, 0.9))
+            if mode == ELASTIC:
+                # An attempt that ran past a loss of contact (a stage or its end with
+                # δ < 0), where F ~ δ^(3/2) stops being smooth and the error estimate
+                # explodes: aim the next attempt just short of the first crossing the
+                # stage values bracket, instead of shrinking blindly.
+                c_neg = 2.0
+                for q in range(1, 13):
+                    if dstage[q] < 0.0 and _C[q] < c_neg:
+                        c_neg = _C[q]
+                if c_neg <= 1.0:
+                    c_pos = 0.0
+                    d_pos = max(dstage[0], 0.0)
+                    d_neg = 0.0
+                    for q in range(1, 13):
+                        if _C[q] < c_neg and _C[q] > c_pos and dstage[q] > 0.0:
+                            c_pos = _C[q]
+                            d_pos = dstage[q]
+                        if _C[q] == c_neg:
+                            d_neg = dstage[q]
+                    c_cross = c_pos + (c_neg - c_pos) * d_pos / (d_pos - d_neg)
+                    factor = max(factor, min(0.98 * c_cross, 0.9))
             h *= factor
             hit_kink = False
             if h < hmin_abs:
