@@ -60,7 +60,6 @@ def all_json_schemas() -> dict[str, dict[str, Any]]:
 __all__ = [
     "MAX_SAMPLES",
     "MODELS",
-    "all_models",
     "SCHEMA_VERSION",
     "CompliantFoundation",
     "CosineRail",
@@ -87,4 +86,5 @@ __all__ = [
     "Transition",
     "Wheel",
     "all_json_schemas",
+    "all_models",
 ]

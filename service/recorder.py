@@ -12,7 +12,7 @@ import queue
 import threading
 import time
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 from pydantic import BaseModel
@@ -47,6 +47,19 @@ class _Rail:
 
 
 _STOP = object()
+
+
+class RecorderFront(Protocol):
+    """What the twin needs of a recorder (this thread's, or ``recorder_process``'s child)."""
+
+    def message(self, topic: str, model: type[BaseModel], data: bytes, log_time_ns: int) -> None: ...
+    def passage(self, result: PassageResult) -> None: ...
+    def dent(self, passage_id: str, state: RailState) -> None: ...
+    def rail(self, state: RailState) -> None: ...
+    def backlog(self) -> int: ...
+    def mcap_path(self) -> str | None: ...
+    def rrd_path(self) -> str | None: ...
+    def close(self, timeout: float = 60.0) -> None: ...
 
 
 class Recorder:
@@ -88,6 +101,16 @@ class Recorder:
 
     def backlog(self) -> int:
         return self._queue.qsize()
+
+    def mcap_path(self) -> str | None:
+        """The MCAP file being written (or the last one)."""
+        if self.mcap is None:
+            return None
+        path = self.mcap.path or (self.mcap.files[-1] if self.mcap.files else None)
+        return str(path) if path is not None else None
+
+    def rrd_path(self) -> str | None:
+        return str(self.rerun.path) if self.rerun is not None else None
 
     def close(self, timeout: float = 60.0) -> None:
         """Write what is queued, finish the files."""

@@ -16,10 +16,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-from service.mcap_log import DEFAULT_MAX_BYTES, DEFAULT_MAX_SECONDS, McapLog
+from service.mcap_log import DEFAULT_MAX_BYTES, DEFAULT_MAX_SECONDS
 from service.physics import PassageSimulator
-from service.recorder import Recorder
-from service.rerun_recording import RerunRecording
+from service.recorder_process import ProcessRecorder, RecordingPlan
 from service.site import SiteFileError, load_site
 from service.twin import Twin
 from service.zenoh_session import DEFAULT_ENDPOINT, build_config, open_session
@@ -94,11 +93,14 @@ def run(args: argparse.Namespace) -> int:
         print(f"railtwin serve: physics warmed up in {warm_up():.1f} s", flush=True)
     stamp = time.strftime("%Y%m%d-%H%M%S")
     stem = f"railtwin-{site.site_id}-{stamp}"
-    mcap = None if args.no_mcap else McapLog(
-        args.recordings, stem, max_bytes=int(args.mcap_max_mb * 2**20),
-        max_seconds=args.mcap_max_seconds)
-    rerun = None if args.no_rerun else RerunRecording(args.recordings / f"{stem}.rrd", site.site_id)
-    recorder = Recorder(mcap, rerun) if (mcap or rerun) else None
+    recorder: ProcessRecorder | None = None
+    if not (args.no_mcap and args.no_rerun):
+        # MCAP and Rerun are written by a child process, off this interpreter's GIL
+        recorder = ProcessRecorder(RecordingPlan(
+            directory=args.recordings, stem=stem, site_id=site.site_id,
+            mcap=not args.no_mcap, rerun=not args.no_rerun,
+            mcap_max_bytes=int(args.mcap_max_mb * 2**20), mcap_max_seconds=args.mcap_max_seconds,
+        ))
 
     stop = threading.Event()
 
@@ -126,11 +128,14 @@ def run(args: argparse.Namespace) -> int:
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)
-    if mcap is not None:
-        for f in mcap.files:
+    if recorder is not None:
+        for f in sorted(args.recordings.glob(f"{stem}-*.mcap")):
             print(f"railtwin serve: MCAP log {f}", flush=True)
-    if rerun is not None:
-        print(f"railtwin serve: Rerun recording {rerun.path}", flush=True)
+        if recorder.rrd_path() is not None:
+            print(f"railtwin serve: Rerun recording {recorder.rrd_path()}", flush=True)
+        if recorder.failures:
+            print(f"railtwin serve: {recorder.failures} recording failures, last: "
+                  f"{recorder.last_failure}", file=sys.stderr, flush=True)
     return 0
 
 

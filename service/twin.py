@@ -47,7 +47,7 @@ from schemas.messages import (
 from schemas.site import SiteConfig
 from service.keyspace import HEALTH_KEY, SiteKeys
 from service.physics import PassageSimulator
-from service.recorder import Recorder
+from service.recorder import RecorderFront
 
 Pace = Literal["fast", "realtime"]
 
@@ -123,7 +123,7 @@ class Twin:
         session: zenoh.Session,
         physics: PassageSimulator,
         *,
-        recorder: Recorder | None = None,
+        recorder: RecorderFront | None = None,
         pace: Pace = "fast",
         chunk_period: float = 0.02,
         queue_capacity: int = 10_000,
@@ -220,17 +220,16 @@ class Twin:
             query.reply(HEALTH_KEY, data, encoding=self._encodings[Health])
 
     def health(self) -> Health:
-        mcap = self.recorder.mcap if self.recorder is not None else None
-        rerun = self.recorder.rerun if self.recorder is not None else None
-        mcap_path = mcap.path or (mcap.files[-1] if mcap.files else None) if mcap else None
+        mcap_path = self.recorder.mcap_path() if self.recorder is not None else None
+        rrd_path = self.recorder.rrd_path() if self.recorder is not None else None
         return Health(
             site_id=self.site.site_id, started_at=self.started_at,
             uptime=time.monotonic() - self._started_mono,
             passages_received=self.passages_received, passages_done=self.passages_done,
             errors=self.errors, queue_depth=self._queue.qsize(),
             queue_capacity=self.queue_capacity, last_error=self.last_error,
-            mcap_path=str(mcap_path) if mcap_path else None,
-            rrd_path=str(rerun.path) if rerun is not None else None,
+            mcap_path=mcap_path,
+            rrd_path=rrd_path,
         )
 
     # --- worker ------------------------------------------------------------------------

@@ -1,0 +1,197 @@
+"""The recorder in a child process: MCAP and Rerun written outside the service's interpreter.
+
+Writing the log and the recording costs about 2 ms of Python a passage
+(Rerun's ``send_columns``, MCAP's compression), which in a thread competes
+with the simulation for the GIL and cut the service's throughput by a third.
+Here the twin only queues bytes it already has (the JSON of every message)
+and a child process, on the other core, writes the files: same front as
+``service.recorder.Recorder`` (``message``, ``passage``, ``dent``, ``rail``,
+``close``), same order, same files.
+
+The child ignores SIGINT/SIGTERM (the service stops it through the queue, so
+that every queued message is written and the files get their footers) and
+finishes its files on its own if the service dies: it watches its parent.
+The MCAP log is flushed at least every ``flush_interval`` seconds, so a
+crash loses at most that much.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing as mp
+import os
+import queue
+import signal
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from pydantic import BaseModel
+
+from schemas.messages import PassageResult, RailState
+
+
+@dataclass(frozen=True)
+class RecordingPlan:
+    """What the child writes: ``<directory>/<stem>-NNN.mcap`` and ``<directory>/<stem>.rrd``."""
+
+    directory: Path
+    stem: str
+    site_id: str
+    mcap: bool = True
+    rerun: bool = True
+    mcap_max_bytes: int = 512 * 2**20
+    mcap_max_seconds: float = 3600.0
+    flush_interval: float = 0.5
+
+    @property
+    def rrd_path(self) -> Path | None:
+        return self.directory / f"{self.stem}.rrd" if self.rerun else None
+
+
+class ProcessRecorder:
+    """Front of the recording child process (thread-safe: ``multiprocessing.Queue``)."""
+
+    def __init__(self, plan: RecordingPlan) -> None:
+        self.plan = plan
+        ctx = mp.get_context("spawn")
+        self._queue: Any = ctx.Queue()
+        self._status: Any = ctx.Queue()
+        self._process = ctx.Process(
+            target=_child_main, args=(plan, self._queue, self._status, os.getpid()),
+            name="railtwin-recorder", daemon=True,
+        )
+        self._process.start()
+        self.failures = 0
+        self.last_failure: str | None = None
+        self._mcap_path: str | None = None
+        self._closed = False
+
+    # --- front -------------------------------------------------------------------------
+
+    def message(self, topic: str, model: type[BaseModel], data: bytes, log_time_ns: int) -> None:
+        if self.plan.mcap and not self._closed:
+            self._queue.put(("m", topic, model.__name__, data, log_time_ns))
+
+    def passage(self, result: PassageResult) -> None:
+        if self.plan.rerun and not self._closed:
+            self._queue.put(("p", result.model_dump_json().encode()))
+
+    def dent(self, passage_id: str, state: RailState) -> None:
+        if self.plan.rerun and not self._closed:
+            self._queue.put(("d", passage_id, state.model_dump_json().encode()))
+
+    def rail(self, state: RailState) -> None:
+        if self.plan.rerun and not self._closed:
+            self._queue.put(("r", state.model_dump_json().encode()))
+
+    def backlog(self) -> int:
+        try:
+            return int(self._queue.qsize())
+        except NotImplementedError:  # macOS
+            return 0
+
+    def mcap_path(self) -> str | None:
+        """The MCAP file being written (or the last one)."""
+        self._poll()
+        return self._mcap_path
+
+    def rrd_path(self) -> str | None:
+        path = self.plan.rrd_path
+        return str(path) if path is not None else None
+
+    def close(self, timeout: float = 60.0) -> None:
+        """Have the child write what is queued and finish the files."""
+        if self._closed:
+            return
+        self._closed = True
+        self._queue.put(None)
+        self._process.join(timeout)
+        if self._process.is_alive():
+            self._process.terminate()
+            self._process.join(5.0)
+            self.failures += 1
+            self.last_failure = f"recorder did not finish within {timeout:g} s"
+        self._poll()
+
+    def _poll(self) -> None:
+        while True:
+            try:
+                kind, text = self._status.get_nowait()
+            except (queue.Empty, OSError, EOFError, ValueError):
+                return
+            if kind == "path":
+                self._mcap_path = text
+            else:
+                self.failures += 1
+                self.last_failure = text
+
+
+def _child_main(plan: RecordingPlan, inbox: Any, status: Any, parent_pid: int) -> None:
+    """The child's loop: write every queued item in order; flush MCAP regularly."""
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, signal.SIG_IGN)
+    from schemas import all_models
+    from service.mcap_log import McapLog
+    from service.rerun_recording import RerunRecording
+
+    models = all_models()
+    mcap = (
+        McapLog(plan.directory, plan.stem, max_bytes=plan.mcap_max_bytes,
+                max_seconds=plan.mcap_max_seconds)
+        if plan.mcap else None
+    )
+    path = plan.rrd_path
+    rerun = RerunRecording(path, plan.site_id) if path is not None else None
+    last_flush = time.monotonic()
+    last_path: Path | None = None
+    try:
+        while True:
+            try:
+                item = inbox.get(timeout=plan.flush_interval / 2)
+            except queue.Empty:
+                item = ()
+                if os.getppid() != parent_pid:  # the service died: finish the files
+                    break
+            except (EOFError, OSError):
+                break
+            if item is None:
+                break
+            try:
+                _write(item, models, mcap, rerun)
+            except Exception as exc:  # a recording failure is reported, never fatal
+                status.put(("fail", f"{type(exc).__name__}: {exc}"))
+            if mcap is not None:
+                if mcap.path is not None and mcap.path != last_path:
+                    last_path = mcap.path
+                    status.put(("path", str(last_path)))
+                now = time.monotonic()
+                if now - last_flush >= plan.flush_interval:
+                    mcap.flush()
+                    last_flush = now
+    finally:
+        if mcap is not None:
+            with contextlib.suppress(Exception):
+                mcap.close()
+        if rerun is not None:
+            with contextlib.suppress(Exception):
+                rerun.close()
+
+
+def _write(item: tuple[Any, ...], models: dict[str, type[BaseModel]], mcap: Any, rerun: Any) -> None:
+    if not item:
+        return
+    kind = item[0]
+    if kind == "m" and mcap is not None:
+        _, topic, model_name, data, log_time_ns = item
+        mcap.write(topic, models[model_name], data, log_time_ns)
+    elif kind == "p" and rerun is not None:
+        rerun.log_passage(PassageResult.model_validate_json(item[1]))
+    elif kind == "d" and rerun is not None:
+        rerun.log_dent(item[1], RailState.model_validate_json(item[2]))
+    elif kind == "r" and rerun is not None:
+        import numpy as np
+
+        state = RailState.model_validate_json(item[1])
+        rerun.log_rail(np.asarray(state.x), np.asarray(state.y))
