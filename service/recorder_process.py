@@ -74,9 +74,10 @@ class ProcessRecorder:
         if self.plan.mcap and not self._closed:
             self._queue.put(("m", topic, model.__name__, data, log_time_ns))
 
-    def passage(self, result: PassageResult) -> None:
+    def passage(self, result: PassageResult, data: bytes | None = None) -> None:
+        """``data``: the result's JSON if the caller has it already (saves serialising twice)."""
         if self.plan.rerun and not self._closed:
-            self._queue.put(("p", result.model_dump_json().encode()))
+            self._queue.put(("p", data if data is not None else result.model_dump_json().encode()))
 
     def dent(self, passage_id: str, state: RailState) -> None:
         if self.plan.rerun and not self._closed:

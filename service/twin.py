@@ -267,10 +267,10 @@ class Twin:
                 received_at=item.received_ns / 1e9,
             ))
             return
-        self._publish_result(result, item.received_mono)
+        result_data = self._publish_result(result, item.received_mono)
         self.passages_done += 1
         if self.recorder is not None:
-            self.recorder.passage(result)
+            self.recorder.passage(result, result_data)
             if result.summary.max_dent > 0.0:
                 self.recorder.dent(result.passage_id, self.physics.rail_state())
 
@@ -313,7 +313,8 @@ class Twin:
         )
         return msg.model_dump_json().encode()
 
-    def _publish_result(self, r: PassageResult, received_mono: float) -> None:
+    def _publish_result(self, r: PassageResult, received_mono: float) -> bytes:
+        """Publish (or schedule) the series and the result; returns the result's JSON."""
         k = self.keys
         pid = r.passage_id
         result_data = r.model_dump_json().encode()
@@ -324,7 +325,7 @@ class Twin:
             self._put(k.indentation(pid), f"{k.prefix}/indentation", PassageSeries,
                       self._series(r, "indentation", 0, n, 0, 1))
             self._put(k.result(pid), f"{k.prefix}/result", PassageResult, result_data)
-            return
+            return result_data
         n = len(r.x)
         per_chunk = max(1, round(self.chunk_period * r.sample_rate))
         chunks = max(1, -(-n // per_chunk))
@@ -338,6 +339,7 @@ class Twin:
                                self._series(r, quantity, first, last, c, chunks))
         self._schedule(received_mono + r.site_length / r.speed, k.result(pid), PassageResult,
                        result_data)
+        return result_data
 
     # --- pacer (realtime) --------------------------------------------------------------
 
