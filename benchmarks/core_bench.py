@@ -64,6 +64,9 @@ from sim_core.wheel import WheelOutline
 RTOL = 1e-9
 """railtwin's accuracy setting in every case (``PassageSpec.rtol``, its default); SciPy gets the same."""
 
+LOOSE_RTOL = 1e-8
+"""A second setting for (a) and (b): still within the issue's accuracy targets."""
+
 RESONANCE_FREQUENCY = 280.0
 RESONANCE_PERIODS = 300
 FLAT_LENGTH = 0.06
@@ -242,7 +245,7 @@ def bench_passage(
         res["scipy_events"] = _peer_entry(ev, sim, best)
         res["agreement"] = agreement(out, ev)
         _log(f"{key}: scipy with events {ev.wall:.2f} s")
-        if key == "a" and spec.duration > AGREEMENT_PERIODS / RESONANCE_FREQUENCY * 1.001:
+        if key.startswith("a") and spec.duration > AGREEMENT_PERIODS / RESONANCE_FREQUENCY * 1.001:
             short = replace(spec, duration=AGREEMENT_PERIODS / RESONANCE_FREQUENCY)
             ev_s = scipy_peer.solve_events(table, short)
             res["agreement_short"] = agreement(simulate_passage(table, short), ev_s)
@@ -443,6 +446,16 @@ def run(quick: bool = False, repeats: int = REPEATS, peer: bool = True) -> dict[
             peer,
         )
     )
+    if not quick:
+        # The same two cases at a looser tolerance that still meets the issue's accuracy
+        # (peak force 1e-4, transition times 1e-7 s against SciPy: see the agreement rows).
+        for key, (tab, sp), title in (
+            ("a8", resonance_case(periods), f"(a) at rtol {LOOSE_RTOL:g}"),
+            ("b8", flat_compliant_case(turns), f"(b) at rtol {LOOSE_RTOL:g}"),
+        ):
+            out["cases"].append(
+                bench_passage(key, title, tab, replace(sp, rtol=LOOSE_RTOL), repeats, peer)
+            )
     if quick:
         out["cases"].append(
             bench_multipass(wheels=2, peer_wheels=1, duration=0.01, repeats=1, peer=peer)
@@ -465,7 +478,8 @@ def _fmt_s(x: float) -> str:
 def markdown(res: dict[str, Any]) -> str:
     """The tables of a ``run()`` result, ready for the README."""
     lines = [
-        f"Simulation core, rtol = {res['rtol']:g} (SciPy: same rtol and atol), best of "
+        f"Simulation core, rtol = {res['rtol']:g} unless the case says otherwise (SciPy: same "
+        f"rtol and atol), best of "
         f"{res['repeats']} after a compiling warm-up; SciPy runs once.",
         "",
         "| case | simulated | railtwin wall | real-time factor | steps / rejected / RHS per sim. s "
