@@ -836,46 +836,22 @@ def integrate(
         ev_s = -1.0
         ev_kind = -1
         if mode == FLIGHT:
-            ev_s = _flight_scan(
-                t,
-                h,
-                coef,
-                par,
-                tx,
-                ty,
-                tsl,
-                tsr,
-                period,
-                kinks,
-                stack_s,
-                stack_g,
-                0.0,
-            )
-            while ev_s >= 0.0:
+            s_from = 0.0
+            while True:
+                ev_s = _flight_scan(
+                    t, h, coef, par, tx, ty, tsl, tsr, period, kinks, stack_s, stack_g, s_from
+                )
+                if ev_s < 0.0:
+                    break
                 _, rate = _delta_rate(ev_s, t, h, coef, par, tx, ty, tsl, tsr, period)
                 if rate > 0.0:
                     ev_kind = EV_CONTACT
                     break
-                # a grazing touch (δ reaches 0 without rising through it): look on
-                s_next = ev_s + max(1e-12, 1e-14 / h)
-                if s_next >= 1.0:
+                # a grazing touch (δ reaches 0 without rising through it): look on after it
+                s_from = ev_s + max(1e-12, 1e-14 / h)
+                if s_from >= 1.0:
                     ev_s = -1.0
                     break
-                ev_s = _flight_scan(
-                    t,
-                    h,
-                    coef,
-                    par,
-                    tx,
-                    ty,
-                    tsl,
-                    tsr,
-                    period,
-                    kinks,
-                    stack_s,
-                    stack_g,
-                    s_next,
-                )
         else:
             dmin = dstage[12]
             dmax = dstage[12]
