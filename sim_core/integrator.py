@@ -102,6 +102,9 @@ MAX_FACTOR = 10.0
 EVENT_OFFSET = 1e-15
 """How far (m) past a switching surface the state is put after an event."""
 
+LOSS_AIM = 1.1
+"""Aim a step this far past the linearly predicted loss of contact (δ is convex there)."""
+
 IMPACT_FIRST_STEP = 0.004
 """First step after a landing, as a fraction of the Hertz impact duration."""
 
@@ -932,6 +935,8 @@ def integrate(
         tn = t + hstep
         if hit_kink:
             tn = kinks[kp] / v
+        d_b = 0.0
+        r_b = 0.0
         # --- dense output: samples, extrema, dents
         while si < ns and sample_t[si] <= tn:
             ts = sample_t[si]
@@ -1106,6 +1111,11 @@ def integrate(
                 j0c = j1c
                 j0m = j1m
             h = h * factor
+            if mode == ELASTIC and r_b < 0.0 and d_b > 0.0 and h * -r_b > d_b:
+                # The next step would run past a loss of contact, where F ~ δ^(3/2) stops
+                # being smooth: aim it just past the crossing predicted from δ and dδ/dt, so
+                # that the step holding the event is accepted and then redone onto it.
+                h = LOSS_AIM * d_b / -r_b
     stats = np.array([nsteps, nrej, nrhs], dtype=np.int64)
     extrema = np.array([peak_delta, min_delta, t_flight, t, float(mode)])
     return (
