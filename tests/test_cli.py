@@ -211,12 +211,12 @@ def test_simulate_plumbing(
     )
     assert code == 0, err
     (call,) = fake_multipass
-    assert call["passes"] == 2 and call["constraint"] == "exact" and call["phase"] == 0.0
+    assert call["passes"] == 3 and call["constraint"] == "exact" and call["phase"] == 0.0
     assert call["wheel"] == ("round", (0.475,)) and call["rail"] == ("flat", ())
     assert call["spec"].initial.v_c == -0.3 and call["spec"].contact.yield_force > 0
-    assert "pass 2/2" in err  # progress on stderr
+    assert "pass 3/3" in err  # progress on stderr
     result = Result.model_validate_json(out.read_text())
-    assert len(result.passes_summary) == 2 and result.summary == result.passes_summary[-1]
+    assert len(result.passes_summary) == 3 and result.summary == result.passes_summary[-1]
     assert result.rail_after is not None and result.rail_after.y == [0.0, -1e-6]
     assert result.transitions[0].kind == "loss" and result.stats is not None
     assert result.stats.steps == 100
