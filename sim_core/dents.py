@@ -31,8 +31,9 @@ DENT_RAIL_SPACING = 5e-4
 (curvature below ~0.1 /m in Fig. 8), so chords 0.5 mm long stay within ~1e-8 m of the
 dent while the next wheel's table (a kink at every concave vertex) stays small."""
 
-COSINE_SAMPLES_PER_WAVELENGTH = 512
-"""Sampling of a cosine rail when dents turn it into a sampled one (chord error a·(π/512)²/2 ≈ 2e-5·a)."""
+COSINE_CHORD_ERROR = 1e-9
+"""Largest distance (m) between a cosine rail and the polyline that replaces it once dented:
+a·(π/n)²/2 <= this fixes the samples per wavelength n (32 to 1024)."""
 
 
 def dent_profile(
@@ -90,12 +91,25 @@ def thin_dents(
     return x[keep], depth[keep]
 
 
+def cosine_samples_per_wavelength(rail: RailProfile) -> int:
+    """Samples per wavelength that keep a dented cosine rail within ``COSINE_CHORD_ERROR``.
+
+    The chord of a·cos between samples λ/n apart deviates by at most a·(π/n)²/2: for the
+    paper's a = 0.1 mm that is n = 703, for a 2 µm corrugation n = 100.
+    """
+    n = np.pi * np.sqrt(abs(rail.amplitude) / (2.0 * COSINE_CHORD_ERROR))
+    return int(min(1024, max(32, np.ceil(n))))
+
+
 def _base_grid(rail: RailProfile, x_start: float, x_end: float) -> NDArray[np.float64]:
     if rail.kind == "sampled":
         inside = rail.x[(rail.x > x_start) & (rail.x < x_end)]
         return np.concatenate(([x_start], inside, [x_end]))
     if rail.kind == "cosine":
-        n = int(np.ceil((x_end - x_start) / rail.wavelength * COSINE_SAMPLES_PER_WAVELENGTH)) + 1
+        n = (
+            int(np.ceil((x_end - x_start) / rail.wavelength * cosine_samples_per_wavelength(rail)))
+            + 1
+        )
         return np.linspace(x_start, x_end, n)
     if rail.kind == "step":
         pos = rail.step_position
@@ -129,7 +143,7 @@ def dented_rail(
     if rail.kind == "sampled" and rail.x.size > 2:
         spacing = min(spacing, float(np.median(np.diff(rail.x))))
     if rail.kind == "cosine":
-        spacing = min(spacing, rail.wavelength / COSINE_SAMPLES_PER_WAVELENGTH)
+        spacing = min(spacing, rail.wavelength / cosine_samples_per_wavelength(rail))
     inside = np.concatenate(([0], (dents_depth > 0.0).astype(np.int8), [0]))
     change = np.flatnonzero(np.diff(inside))
     first, last = change[0::2], change[1::2] - 1
