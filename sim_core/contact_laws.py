@@ -128,14 +128,6 @@ class ContactModel:
 
 
 @numba.njit(cache=True, inline="always")
-def hertz_force(delta: float, c: float) -> float:
-    """C·δ^(3/2), 0 for δ <= 0."""
-    if delta <= 0.0:
-        return 0.0
-    return c * delta * math.sqrt(delta)
-
-
-@numba.njit(cache=True, inline="always")
 def johnson_plastic_force(delta: float, f_y: float, d_y: float, theta_y: float) -> float:
     """Johnson's cavity-model loading force (valid for δ >= δ_Y; guarded below)."""
     s = 2.0 * delta / d_y - 1.0
@@ -158,7 +150,7 @@ def contact_force(
     return f_y
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def mode_force(
     delta: float, plastic: bool, law: int, c: float, f_y: float, d_y: float, theta_y: float
 ) -> float:

@@ -77,20 +77,6 @@ def dent_profile(
     return grid, out
 
 
-def thin_dents(
-    x: NDArray[np.float64], depth: NDArray[np.float64], spacing: float
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Keep one dent sample per ``spacing`` of rail, every edge of a dent and the deepest point."""
-    bins = np.floor((x - x[0]) / spacing).astype(np.int64)
-    _, first = np.unique(bins, return_index=True)
-    inside = depth > 0.0
-    edges = np.flatnonzero(inside[1:] != inside[:-1])
-    keep = np.unique(
-        np.concatenate((first, edges, edges + 1, [int(np.argmax(depth))], [x.size - 1]))
-    )
-    return x[keep], depth[keep]
-
-
 def cosine_samples_per_wavelength(rail: RailProfile) -> int:
     """Samples per wavelength that keep a dented cosine rail within ``COSINE_CHORD_ERROR``.
 

@@ -42,7 +42,7 @@ from numpy.typing import NDArray
 
 from sim_core import dop853
 from sim_core.constraint_table import locate, table_eval, table_value, wrap
-from sim_core.contact_laws import HERTZ, JOHNSON, johnson_plastic_force
+from sim_core.contact_laws import HERTZ, JOHNSON, mode_force
 
 # Modes.
 FLIGHT = 0
@@ -143,13 +143,17 @@ def _constraint(
 
 @numba.njit(cache=True, inline="always")
 def _force(delta: float, mode: int, par: NDArray[np.float64], scale: float) -> float:
-    if mode == FLIGHT or delta <= 0.0:
+    if mode == FLIGHT:
         return 0.0
-    if mode == ELASTIC:
-        return par[P_C] * scale * delta * math.sqrt(delta)
-    if int(par[P_LAW]) == JOHNSON:
-        return johnson_plastic_force(delta, par[P_FY], par[P_DY], par[P_THETA])
-    return par[P_FY]
+    return mode_force(
+        delta,
+        mode == PLASTIC,
+        int(par[P_LAW]),
+        par[P_C] * scale,
+        par[P_FY],
+        par[P_DY],
+        par[P_THETA],
+    )
 
 
 @numba.njit(cache=True, inline="always")
