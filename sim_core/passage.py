@@ -286,7 +286,9 @@ def simulate_passage(
     par[integ.P_DENT_DX] = dent_spacing
     par[integ.P_TRACK_DENTS] = 1.0 if track_dents else 0.0
     n_samples = math.floor(spec.duration * spec.sample_rate * (1 + 1e-12)) + 1
-    sample_t = t0 + np.arange(n_samples) / spec.sample_rate
+    # the last sample may round past t1 by an ulp: it is t1 (else the integrator, which stops
+    # at t1, would leave it unfilled as a row of zeros)
+    sample_t = np.minimum(t0 + np.arange(n_samples) / spec.sample_rate, t1)
     kinks = table.kinks_between(v * t0 - 1e-12, v * t1 + table.resolution)
     status, samples, tr_t, tr_k, extrema, dents, stats, _ = integ.integrate(
         table.x,
