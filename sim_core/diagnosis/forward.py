@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import math
 from collections import OrderedDict
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Literal
 
 import numpy as np
@@ -130,7 +130,7 @@ class WheelOnSite:
     load: float
     radius: float
     contact: ContactModel
-    foundation: Foundation = Foundation.rigid()
+    foundation: Foundation = field(default_factory=Foundation.rigid)
     rtol: float = 1e-8
 
 
