@@ -103,7 +103,10 @@ def _haversine_inflections(R: float, ln: float, d: float) -> list[float]:
         return r * r + 2.0 * r1 * r1 - r * r2
 
     ts = np.linspace(0.0, half, 2049)
-    cs = [curv(float(t)) for t in ts]
+    r = R - 0.5 * d * (1.0 + np.cos(w * ts))
+    r1 = 0.5 * d * w * np.sin(w * ts)
+    r2 = 0.5 * d * w * w * np.cos(w * ts)
+    cs = (r * r + 2.0 * r1 * r1 - r * r2).tolist()  # curv() on the grid, vectorised
     out = []
     for i in range(ts.size - 1):
         if (cs[i] < 0.0) != (cs[i + 1] < 0.0):

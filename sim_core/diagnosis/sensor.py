@@ -8,8 +8,8 @@ it compares it with a measurement, so a sharp 1 ms impact is matched as the site
 records it, not as the contact feels it.
 
 The filter acts on the force as a continuous signal: it is applied at a fine internal
-rate (at least 200 kHz and 40 times the cut-off, where the bilinear transform's
-pre-warping makes it the analogue filter to within 0.1 %), started in steady state on the
+rate (at least 50 kHz and 25 times the cut-off; the bilinear transform's pre-warping
+keeps the cut-off exact), started in steady state on the
 first value, and the result is read at the measurement instants by linear interpolation.
 
 Worked example: a 1 kHz second-order low-pass passes a static load unchanged and
@@ -35,7 +35,7 @@ from scipy import signal
 
 __all__ = ["FINE_RATE_MIN", "SensorModel"]
 
-FINE_RATE_MIN = 200_000.0
+FINE_RATE_MIN = 50_000.0
 """Hz: the lowest internal rate at which the low-pass is applied (``fine_rate``)."""
 
 
@@ -58,7 +58,7 @@ class SensorModel:
         """The internal rate (Hz) at which a simulated force should be sampled for ``measure``."""
         rate = max(FINE_RATE_MIN, 4.0 * measurement_rate)
         if self.cutoff_hz is not None:
-            rate = max(rate, 40.0 * self.cutoff_hz)
+            rate = max(rate, 25.0 * self.cutoff_hz)
         return rate
 
     def filter(self, f: NDArray[np.float64], rate: float) -> NDArray[np.float64]:
