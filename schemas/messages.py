@@ -27,9 +27,9 @@ site's start).
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
-from pydantic import BaseModel, Field, model_validator
+from pydantic import BaseModel, Field, field_validator, model_validator
 
 from schemas._base import Finite, NonNegative, Positive, StrictModel, field_error
 from schemas.result import Summary, Transition
@@ -78,13 +78,14 @@ class WheelPassage(StrictModel):
         default_factory=lambda: RoundOutline(kind="round"),
         description="wheel outline r(θ); round when not measured",
     )
-    phase: Finite = Field(default=0.0, description="rotation φ0 at the site's start, rad, [0, 2π)")
+    phase: Finite = Field(
+        default=0.0, description="rotation φ0 at the site's start, rad; any finite angle, taken modulo 2π"
+    )
 
-    @model_validator(mode="after")
-    def _check_phase(self) -> WheelPassage:
-        if not 0.0 <= self.phase < TWO_PI:
-            raise field_error("phase", f"must lie in [0, 2π) rad, got {self.phase!r}")
-        return self
+    @field_validator("phase")
+    @classmethod
+    def _wrap_phase(cls, v: float) -> float:
+        return v % TWO_PI  # CONTRACT.md: any finite φ0, taken modulo 2π
 
 
 # --- out -----------------------------------------------------------------------------------
@@ -157,7 +158,10 @@ class FieldProblem(StrictModel):
     type: str = Field(description="pydantic error type, e.g. greater_than, json_invalid")
 
 
-ErrorKind = Literal["invalid_json", "invalid_passage", "simulation_failed", "overloaded"]
+ErrorKind = Literal[
+    "invalid_json", "invalid_passage", "simulation_failed", "overloaded",
+    "invalid_measurement", "unpaired",
+]
 
 
 class ServiceError(StrictModel):
@@ -232,7 +236,7 @@ class TrainFile(StrictModel):
     wheels: list[TrainWheel]
 
 
-MESSAGE_MODELS: dict[str, type[BaseModel]] = {
+_MESSAGE_MODELS: dict[str, type[BaseModel]] = {
     "WheelPassage": WheelPassage,
     "PassageSeries": PassageSeries,
     "PassageResult": PassageResult,
@@ -242,4 +246,21 @@ MESSAGE_MODELS: dict[str, type[BaseModel]] = {
     "RejectedInput": RejectedInput,
     "TrainFile": TrainFile,
 }
-"""The service's top-level models by name (for ``railtwin schema``)."""
+
+if TYPE_CHECKING:
+    MESSAGE_MODELS: dict[str, type[BaseModel]]
+    """The service's top-level models by name (for ``railtwin schema``), with the
+    diagnosis's (``MeasuredPassage``, ``Diagnosis``)."""
+else:
+
+    def __getattr__(name: str) -> Any:
+        # MESSAGE_MODELS is built on first use: schemas.diagnosis imports this module,
+        # so it cannot be imported here at load time (whichever is imported first).
+        if name == "MESSAGE_MODELS":
+            from schemas.diagnosis import Diagnosis, MeasuredPassage
+
+            models = {**_MESSAGE_MODELS, "MeasuredPassage": MeasuredPassage,
+                      "Diagnosis": Diagnosis}
+            globals()["MESSAGE_MODELS"] = models
+            return models
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

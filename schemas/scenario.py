@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 from typing import Annotated, Literal
 
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from schemas._base import (
     SCHEMA_VERSION,
@@ -128,13 +128,17 @@ class Wheel(StrictModel):
     outline: Outline = Field(description="wheel outline r(θ)")
     phase: Finite = Field(
         default=0.0,
-        description="initial rotation φ0 in [0, 2π), rad: φ = φ0 + x_C/R (CONTRACT.md)",
+        description="initial rotation φ0, rad: φ = φ0 + x_C/R; any finite angle, taken "
+        "modulo 2π (CONTRACT.md)",
     )
+
+    @field_validator("phase")
+    @classmethod
+    def _wrap_phase(cls, v: float) -> float:
+        return v % TWO_PI
 
     @model_validator(mode="after")
     def _check_geometry(self) -> Wheel:
-        if not 0.0 <= self.phase < TWO_PI:
-            raise field_error("phase", f"must lie in [0, 2π) rad, got {self.phase!r}")
         o = self.outline
         r = self.radius
         if isinstance(o, FlatOutline) and not o.length < 2.0 * r:

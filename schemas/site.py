@@ -21,6 +21,7 @@ from typing import Annotated, Literal
 from pydantic import Field, model_validator
 
 from schemas._base import Positive, StrictModel, field_error
+from schemas.diagnosis import DiagnosisConfig
 from schemas.messages import MESSAGE_SCHEMA_VERSION, Identifier, Version
 from schemas.scenario import (
     CompliantFoundation,
@@ -64,6 +65,10 @@ class SiteConfig(StrictModel):
     material: Material
     contact: ContactName = Field(description="contact law (MODEL.md §3)")
     foundation: SiteFoundation = Field(default_factory=lambda: RigidFoundation(kind="rigid"))
+    diagnosis: DiagnosisConfig = Field(
+        default_factory=DiagnosisConfig,
+        description="wheel-flat diagnosis: measuring chain, line speed, limits",
+    )
     rtol: float = Field(
         default=1e-8, ge=1e-14, le=1e-2, allow_inf_nan=False,
         description="integrator relative tolerance",

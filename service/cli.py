@@ -43,7 +43,9 @@ exit status:
   130  interrupted (Ctrl-C)
 """
 
-OPTIONAL_COMMAND_MODULES: tuple[str, ...] = ("service.serve_cli", "service.replay_cli")
+OPTIONAL_COMMAND_MODULES: tuple[str, ...] = (
+    "service.serve_cli", "service.replay_cli", "service.diagnose_cli",
+)
 """Modules that add subcommands when present (each defines ``register(subparsers)``)."""
 
 PROG = "railtwin"

@@ -54,7 +54,7 @@ def test_good_passage_has_defaults_and_version() -> None:
          "invalid_passage", "radius"),
         (json.dumps({**GOOD, "outline": {"kind": "flat", "length": -0.05}}).encode(),
          "invalid_passage", "outline.length"),
-        (json.dumps({**GOOD, "phase": 7.0}).encode(), "invalid_passage", "phase"),
+        (json.dumps({**GOOD, "phase": "north"}).encode(), "invalid_passage", "phase"),
         (json.dumps({**GOOD, "passage_id": "a/b"}).encode(), "invalid_passage", "passage_id"),
         (b"[1, 2]", "invalid_passage", None),
     ],

@@ -51,7 +51,9 @@ __all__ = [
     "RUN_IN_TURNS",
     "Flat",
     "FlatKind",
+    "MeasuredTread",
     "RailTables",
+    "Tread",
     "WheelOnSite",
     "flat_times",
     "simulate_passage_run_in",
@@ -122,6 +124,24 @@ class Flat:
 
 
 @dataclass(frozen=True)
+class MeasuredTread:
+    """Any outline (e.g. a trolley-measured tread) turned by ``phase``: a ``Tread`` like ``Flat``."""
+
+    wheel_outline: WheelOutline
+    phase: float
+
+    def outline(self, radius: float) -> WheelOutline:
+        return self.wheel_outline
+
+    def with_phase(self, phase: float) -> MeasuredTread:
+        return MeasuredTread(self.wheel_outline, phase % TWO_PI)
+
+
+Tread = Flat | MeasuredTread
+"""What is on the wheel's tread: a flat the fit can name, or any measured outline."""
+
+
+@dataclass(frozen=True)
 class WheelOnSite:
     """What is known of the wheel and the site: m (kg), P (N), R (m), the contact law,
     the foundation and the integrator's relative tolerance."""
@@ -172,7 +192,7 @@ class RailTables:
 
 
 def wheel_table(
-    radius: float, flat: Flat | None, rails: RailTables, x0: float, x1: float
+    radius: float, flat: Tread | None, rails: RailTables, x0: float, x1: float
 ) -> ConstraintTable:
     """The combined-irregularity constraint of the wheel (``None``: round) over [x0, x1]."""
     a, b = x0 - TABLE_MARGIN, x1 + TABLE_MARGIN
@@ -210,7 +230,7 @@ def run_in_length(radius: float) -> float:
 def simulate_passage_run_in(
     wheel: WheelOnSite,
     speed: float,
-    flat: Flat | None,
+    flat: Tread | None,
     rails: RailTables,
     x_start: float,
     x_end: float,

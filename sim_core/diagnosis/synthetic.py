@@ -38,8 +38,8 @@ from numpy.typing import NDArray
 
 from sim_core.diagnosis.forward import (
     TABLE_MARGIN,
-    Flat,
     RailTables,
+    Tread,
     WheelOnSite,
     run_in_length,
     simulate_passage_run_in,
@@ -97,7 +97,7 @@ def rough_rail(rail: RailProfile, x0: float, x1: float, rms: float, seed: int) -
 def synthetic_measurement(
     wheel: WheelOnSite,
     speed: float,
-    flat: Flat | None,
+    flat: Tread | None,
     rail: RailProfile,
     site_length: float,
     sample_rate: float,

@@ -1,0 +1,154 @@
+"""Wheel-flat diagnosis: the measured passage in, the verdict out, the site's limits.
+
+A wayside site (a wheel impact load detector) measures the vertical wheel–rail force
+of every wheel. The twin pairs each ``MeasuredPassage`` with its ``WheelPassage`` (by
+``passage_id``, in either order of arrival), fits the flat that makes its simulation
+look like the measurement (``sim_core.diagnosis``) and answers with a ``Diagnosis``.
+
+| key | direction | model |
+|---|---|---|
+| ``railtwin/<site>/measured`` | in | ``MeasuredPassage`` |
+| ``railtwin/<site>/diagnosis/<passage>`` | out | ``Diagnosis`` |
+
+    >>> m = MeasuredPassage.model_validate_json(
+    ...     '{"passage_id": "t1-a3-r", "sample_rate": 10000, "t_start": 0.0,'
+    ...     ' "force": [60000, 60100, 59900, 60050]}')
+    >>> m.samples, m.duration
+    (4, 0.0003)
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import Field, model_validator
+
+from schemas._base import Finite, NonNegative, Positive, StrictModel, field_error
+from schemas.messages import MESSAGE_SCHEMA_VERSION, Identifier, Version
+
+MAX_MEASURED_SAMPLES = 2_000_000
+"""Cap on the samples of one measured passage (200 s at 10 kHz): larger is refused."""
+
+MIN_MEASURED_SAMPLES = 16
+"""A record needs at least this many samples to be fitted."""
+
+DEFAULT_WATCH_FORCE = 250e3
+DEFAULT_INSPECT_FORCE = 350e3
+DEFAULT_REMOVE_FORCE = 400e3
+DEFAULT_WATCH_LENGTH = 0.03
+DEFAULT_INSPECT_LENGTH = 0.04
+DEFAULT_REMOVE_LENGTH = 0.06
+
+
+class MeasuredPassage(StrictModel):
+    """The site's measured vertical wheel–rail force of one passage.
+
+    Sample k was taken at t = t_start + k / sample_rate, with t = 0 when the wheel
+    centre was at the site's start (x = 0).
+    """
+
+    schema_version: Version = MESSAGE_SCHEMA_VERSION
+    passage_id: Identifier = Field(description="the WheelPassage this measurement belongs to")
+    sample_rate: Positive = Field(le=1e6, description="samples per second, Hz")
+    t_start: Finite = Field(description="time of sample 0, s (t = 0: wheel centre at x = 0)")
+    force: list[Finite] = Field(
+        min_length=MIN_MEASURED_SAMPLES, max_length=MAX_MEASURED_SAMPLES,
+        description="measured vertical wheel–rail force, N",
+    )
+    speed: Positive | None = Field(
+        default=None, le=150.0, description="speed as measured by the site, m/s (optional)"
+    )
+
+    @property
+    def samples(self) -> int:
+        return len(self.force)
+
+    @property
+    def duration(self) -> float:
+        """s between the first and the last sample."""
+        return (len(self.force) - 1) / self.sample_rate
+
+
+FlatKindName = Literal["flat", "rounded_flat"]
+Verdict = Literal["ok", "watch", "inspect", "remove"]
+
+
+class FlatFinding(StrictModel):
+    """The flat the fit found."""
+
+    kind: FlatKindName = Field(description="flat = fresh (ideal), rounded_flat = worn (haversine)")
+    length: Positive = Field(description="chord (flat) or arc (rounded_flat) length, m")
+    depth: Positive = Field(description="depth, m (rounded_flat: l²/16R as fitted)")
+    phase: Finite = Field(description="angular position φ0 at the site's start, rad, [0, 2π)")
+    length_low: NonNegative = Field(description="lower end of the length interval, m")
+    length_high: Positive = Field(description="upper end of the length interval, m")
+
+
+class Diagnosis(StrictModel):
+    """The twin's verdict on one measured passage."""
+
+    schema_version: Version = MESSAGE_SCHEMA_VERSION
+    site_id: Identifier
+    passage_id: Identifier
+    flat: FlatFinding | None = Field(description="null when no flat is found")
+    verdict: Verdict
+    reasons: list[str] = Field(description="each limit that was passed, named, with the values")
+    peak_force_measured: Finite = Field(description="largest measured force, N")
+    peak_force_fit: Finite = Field(
+        description="largest force of the best fit, re-simulated over the record as measured, N"
+    )
+    fit_rms: NonNegative = Field(
+        description="rms difference between measured and fitted force over the fitted "
+        "windows (approach, dip and first impact of each turn), N"
+    )
+    peak_force_at_line_speed: Finite | None = Field(
+        description="the fitted wheel re-simulated at the site's line_speed, as the site "
+        "would measure it, N; null without a line_speed"
+    )
+    wall_time: NonNegative = Field(description="s spent diagnosing")
+
+
+class DiagnosisConfig(StrictModel):
+    """The site file's ``[diagnosis]`` table: the measuring chain and the limits.
+
+    Defaults from practice: 350 kN stop and inspect (Trafikverket), 400 kN ≈ 90 kips
+    remove (the North American wheel-impact condemning limit), 60 mm flat remove
+    (Trafikverket); ``watch`` levels below them.
+    """
+
+    line_speed: Positive | None = Field(
+        default=None, le=150.0, description="the line's full speed at the site, m/s"
+    )
+    sensor_lowpass_hz: Positive | None = Field(
+        default=None, description="cut-off of the measuring chain's causal Butterworth low-pass, Hz"
+    )
+    sensor_lowpass_order: int = Field(default=2, ge=1, le=8, description="its order")
+    sample_rate: Positive | None = Field(
+        default=None, le=1e6,
+        description="the site's measuring rate, Hz; a measurement at another rate is refused "
+        "(absent: any rate)",
+    )
+    watch_force: Positive = Field(default=DEFAULT_WATCH_FORCE, description="N")
+    inspect_force: Positive = Field(default=DEFAULT_INSPECT_FORCE, description="N (Trafikverket)")
+    remove_force: Positive = Field(
+        default=DEFAULT_REMOVE_FORCE, description="N (≈ 90 kips, North American condemning limit)"
+    )
+    watch_length: Positive = Field(default=DEFAULT_WATCH_LENGTH, description="flat length, m")
+    inspect_length: Positive = Field(default=DEFAULT_INSPECT_LENGTH, description="flat length, m")
+    remove_length: Positive = Field(
+        default=DEFAULT_REMOVE_LENGTH, description="flat length, m (Trafikverket)"
+    )
+    pairing_timeout: Positive = Field(
+        default=10.0, le=3600.0,
+        description="s a measurement (or passage) waits for its partner before a ServiceError",
+    )
+
+    @model_validator(mode="after")
+    def _ordered(self) -> DiagnosisConfig:
+        if not self.watch_force <= self.inspect_force <= self.remove_force:
+            raise field_error("inspect_force", "force limits must satisfy watch <= inspect <= remove")
+        if not self.watch_length <= self.inspect_length <= self.remove_length:
+            raise field_error(
+                "inspect_length", "length limits must satisfy watch <= inspect <= remove"
+            )
+        return self
