@@ -1,0 +1,1 @@
+"""Validation runs that are too long for the test suite (``make validate``)."""
