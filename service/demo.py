@@ -40,6 +40,13 @@ def main(argv: list[str] | None = None) -> int:
              "--site", site.site_id, "--connect", endpoint, "--timeout", "300"],
             cwd=ROOT, check=False,
         )
+        print("\ndemo: the site's measured force of four wheels (made by the generator) -> "
+              "the twin's diagnosis", flush=True)
+        measured = subprocess.run(
+            [sys.executable, "-m", "service.measured_feeder", "--train", str(args.train),
+             "--site-file", str(args.site), "--connect", endpoint, "--timeout", "120"],
+            cwd=ROOT, check=False,
+        )
     if svc.returncode != 0:
         print(svc.output, file=sys.stderr)
         return 1
@@ -48,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"demo: MCAP log (open in Foxglove):      {f}")
     if svc.rrd_file is not None:
         print(f"demo: Rerun recording (rerun FILE.rrd): {svc.rrd_file}")
-    return feeder.returncode
+    return feeder.returncode or measured.returncode
 
 
 if __name__ == "__main__":

@@ -5,6 +5,8 @@
     ('railtwin/km12/passage', 'railtwin/km12/force/t1-a0-r')
     >>> k.rail, HEALTH_KEY
     ('railtwin/km12/rail', 'railtwin/health')
+    >>> k.measured, k.diagnosis("t1-a0-r")
+    ('railtwin/km12/measured', 'railtwin/km12/diagnosis/t1-a0-r')
 """
 
 from __future__ import annotations
@@ -31,6 +33,11 @@ class SiteKeys:
         return f"{self.prefix}/passage"
 
     @property
+    def measured(self) -> str:
+        """Where measured passages (``MeasuredPassage``, for the diagnosis) come in."""
+        return f"{self.prefix}/measured"
+
+    @property
     def error(self) -> str:
         return f"{self.prefix}/error"
 
@@ -51,6 +58,9 @@ class SiteKeys:
 
     def result(self, passage_id: str) -> str:
         return f"{self.prefix}/result/{passage_id}"
+
+    def diagnosis(self, passage_id: str) -> str:
+        return f"{self.prefix}/diagnosis/{passage_id}"
 
     def kind_of(self, key: str) -> str | None:
         """``"force"``, ``"result"``, ``"error"``, ... for a key of this site, else None."""

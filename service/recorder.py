@@ -11,12 +11,14 @@ from __future__ import annotations
 import queue
 import threading
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
 import numpy as np
 from pydantic import BaseModel
 
+from schemas.diagnosis import Diagnosis
 from schemas.messages import PassageResult, RailState
 from service.mcap_log import McapLog
 from service.rerun_recording import RerunRecording
@@ -46,6 +48,16 @@ class _Rail:
     state: RailState
 
 
+@dataclass(frozen=True)
+class _Diagnosis:
+    diag: Diagnosis
+    t: Any
+    measured: Any
+    fitted: Any
+    x: Any
+    impacts_x: Any
+
+
 _STOP = object()
 
 
@@ -56,6 +68,9 @@ class RecorderFront(Protocol):
     def passage(self, result: PassageResult, data: bytes | None = None) -> None: ...
     def dent(self, passage_id: str, state: RailState) -> None: ...
     def rail(self, state: RailState) -> None: ...
+    def diagnosis(self, diag: Diagnosis, curves_t: Sequence[float], measured: Sequence[float],
+                  fitted: Sequence[float], x: Sequence[float],
+                  impacts_x: Sequence[float]) -> None: ...
     def backlog(self) -> int: ...
     def mcap_path(self) -> str | None: ...
     def rrd_path(self) -> str | None: ...
@@ -98,6 +113,14 @@ class Recorder:
     def rail(self, state: RailState) -> None:
         if self.rerun is not None:
             self._queue.put(_Rail(state))
+
+    def diagnosis(self, diag: Diagnosis, curves_t: Sequence[float], measured: Sequence[float],
+                  fitted: Sequence[float], x: Sequence[float],
+                  impacts_x: Sequence[float]) -> None:
+        """Measured and fitted force of one diagnosis (at the measured times ``curves_t``,
+        wheel positions ``x``, m), its impacts (m along the site) and verdict."""
+        if self.rerun is not None:
+            self._queue.put(_Diagnosis(diag, curves_t, measured, fitted, x, impacts_x))
 
     def backlog(self) -> int:
         return self._queue.qsize()
@@ -149,6 +172,13 @@ class Recorder:
                 self._guard(lambda: rerun.log_passage(item.result))
             elif isinstance(item, _Dent):
                 self._guard(lambda: rerun.log_dent(item.passage_id, item.state))
+            elif isinstance(item, _Diagnosis):
+                self._guard(lambda: rerun.log_diagnosis(
+                    item.diag, np.asarray(item.t, dtype=np.float64),
+                    np.asarray(item.measured, dtype=np.float64),
+                    np.asarray(item.fitted, dtype=np.float64),
+                    np.asarray(item.x, dtype=np.float64),
+                    np.asarray(item.impacts_x, dtype=np.float64)))
             elif isinstance(item, _Rail):
                 self._guard(lambda: rerun.log_rail(np.asarray(item.state.x),
                                                    np.asarray(item.state.y)))

@@ -6,7 +6,7 @@ with the simulation for the GIL and cut the service's throughput by a third.
 Here the twin only queues bytes it already has (the JSON of every message)
 and a child process, on the other core, writes the files: same front as
 ``service.recorder.Recorder`` (``message``, ``passage``, ``dent``, ``rail``,
-``close``), same order, same files.
+``diagnosis``, ``close``), same order, same files.
 
 The child ignores SIGINT/SIGTERM (the service stops it through the queue, so
 that every queued message is written and the files get their footers) and
@@ -23,12 +23,14 @@ import os
 import queue
 import signal
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from pydantic import BaseModel
 
+from schemas.diagnosis import Diagnosis
 from schemas.messages import PassageResult, RailState
 
 
@@ -86,6 +88,14 @@ class ProcessRecorder:
     def rail(self, state: RailState) -> None:
         if self.plan.rerun and not self._closed:
             self._queue.put(("r", state.model_dump_json().encode()))
+
+    def diagnosis(self, diag: Diagnosis, curves_t: Sequence[float], measured: Sequence[float],
+                  fitted: Sequence[float], x: Sequence[float],
+                  impacts_x: Sequence[float]) -> None:
+        """Plain lists (or arrays) and the diagnosis's JSON cross to the child."""
+        if self.plan.rerun and not self._closed:
+            self._queue.put(("g", diag.model_dump_json().encode(), list(curves_t),
+                             list(measured), list(fitted), list(x), list(impacts_x)))
 
     def backlog(self) -> int:
         try:
@@ -191,6 +201,13 @@ def _write(item: tuple[Any, ...], models: dict[str, type[BaseModel]], mcap: Any,
         rerun.log_passage(PassageResult.model_validate_json(item[1]))
     elif kind == "d" and rerun is not None:
         rerun.log_dent(item[1], RailState.model_validate_json(item[2]))
+    elif kind == "g" and rerun is not None:
+        import numpy as np
+
+        _, diag, t, measured, fitted, x, impacts_x = item
+        rerun.log_diagnosis(Diagnosis.model_validate_json(diag),
+                            *(np.asarray(a, dtype=np.float64)
+                              for a in (t, measured, fitted, x, impacts_x)))
     elif kind == "r" and rerun is not None:
         import numpy as np
 

@@ -12,10 +12,14 @@ quantity overlays every wheel of the run along the site):
 | ``rail/profile`` | the site's rail as the service started | µm |
 | ``rail/dent/<p>`` | accumulated dent depth after passage p (only when it dented) | µm |
 | ``events`` | one text line per passage (peak force, losses, dent) | |
+| ``diagnosis/measured``, ``diagnosis/fit`` | measured and best-fit force of each diagnosis | kN |
+| ``diagnosis/impacts`` | markers: the fitted flat under the wheel | kN |
+| ``diagnosis/verdict`` | one text line per diagnosis (verdict, flat, peak forces) | |
 
 The time line ``x_mm`` is the wheel centre's position along the site in
 millimetres (a sequence: Rerun time lines are integers or times); ``passage``
-numbers the passages. All series go in with ``send_columns`` (one call per
+numbers the passages, ``diagnosis`` the diagnoses (the ``diagnosis/*`` entities are
+the same for every wheel: select one on that time line). All series go in with ``send_columns`` (one call per
 entity and passage). The default blueprint stacks force, indentation, y_C/y_C^k
 and the rail, on the ``x_mm`` time line.
 """
@@ -29,10 +33,13 @@ import rerun as rr
 import rerun.blueprint as rrb
 from numpy.typing import NDArray
 
+from schemas.diagnosis import Diagnosis
 from schemas.messages import PassageResult, RailState
 
 X_TIMELINE = "x_mm"
 PASSAGE_TIMELINE = "passage"
+DIAGNOSIS_TIMELINE = "diagnosis"
+VERDICT_LEVELS = {"ok": "INFO", "watch": "WARN", "inspect": "WARN", "remove": "ERROR"}
 TRANSITION_COLORS = {
     "loss": (230, 60, 60),
     "contact": (60, 160, 60),
@@ -61,7 +68,13 @@ def default_blueprint() -> rrb.Blueprint:
                 rrb.TimeSeriesView(name="Rail: profile and dents [µm]", origin="/rail"),
                 rrb.TextLogView(name="Passages", origin="/events"),
             ),
-            row_shares=[3, 2, 2],
+            rrb.Horizontal(
+                rrb.TimeSeriesView(name="Diagnosis: measured and fitted force [kN]",
+                                   origin="/diagnosis"),
+                rrb.TextLogView(name="Verdicts", origin="/diagnosis/verdict"),
+                column_shares=[3, 1],
+            ),
+            row_shares=[3, 2, 2, 2],
         ),
         rrb.TimePanel(timeline=X_TIMELINE, state="collapsed"),
         rrb.SelectionPanel(state="collapsed"),
@@ -83,6 +96,7 @@ class RerunRecording:
         self.rec = rr.RecordingStream(f"railtwin-{site_id}", recording_id=recording_id)
         self.rec.save(str(path), default_blueprint=default_blueprint())
         self._passages = 0
+        self._diagnoses = 0
         self._closed = False
 
     def log_rail(self, x: NDArray[np.float64], y: NDArray[np.float64]) -> None:
@@ -157,6 +171,59 @@ class RerunRecording:
             ),
         )
         self._passages += 1
+
+    def log_diagnosis(
+        self, diag: Diagnosis, t: NDArray[np.float64], measured: NDArray[np.float64],
+        fitted: NDArray[np.float64], x: NDArray[np.float64], impacts_x: NDArray[np.float64],
+    ) -> None:
+        """Measured vs fitted force (kN) along the site, the impacts and the verdict.
+
+        ``t`` (s) are the measured times, ``x`` (m) the wheel centre's positions then;
+        ``impacts_x`` (m) where the fitted flat meets the rail.
+        """
+        del t  # the series go along x_mm, like the passages
+        if self._diagnoses == 0:
+            self.rec.log("diagnosis/measured", rr.SeriesLines(
+                names="measured F [kN]", colors=(120, 120, 120)), static=True)
+            self.rec.log("diagnosis/fit", rr.SeriesLines(
+                names="fit F [kN]", colors=(230, 60, 60)), static=True)
+            self.rec.log("diagnosis/impacts", rr.SeriesPoints(
+                markers="cross", marker_sizes=6.0, names="impacts"), static=True)
+        n = len(x)
+        index = [
+            rr.TimeColumn(X_TIMELINE, sequence=x_index(x)),
+            rr.TimeColumn(DIAGNOSIS_TIMELINE, sequence=np.full(n, self._diagnoses, dtype=np.int64)),
+        ]
+        self.rec.send_columns("diagnosis/measured", indexes=index,
+                              columns=rr.Scalars.columns(scalars=measured * 1e-3))
+        self.rec.send_columns("diagnosis/fit", indexes=index,
+                              columns=rr.Scalars.columns(scalars=fitted * 1e-3))
+        if len(impacts_x) and n:
+            order = np.argsort(x)
+            f = np.interp(impacts_x, x[order], fitted[order]) * 1e-3
+            self.rec.send_columns(
+                "diagnosis/impacts",
+                indexes=[
+                    rr.TimeColumn(X_TIMELINE, sequence=x_index(impacts_x)),
+                    rr.TimeColumn(DIAGNOSIS_TIMELINE,
+                                  sequence=np.full(len(impacts_x), self._diagnoses,
+                                                   dtype=np.int64)),
+                ],
+                columns=rr.Scalars.columns(scalars=f),
+            )
+        flat = diag.flat
+        found = (f"{flat.kind} {flat.length * 1e3:.1f} mm "
+                 f"[{flat.length_low * 1e3:.1f}, {flat.length_high * 1e3:.1f}]"
+                 if flat is not None else "no flat")
+        self.rec.set_time(X_TIMELINE, sequence=0)
+        self.rec.set_time(DIAGNOSIS_TIMELINE, sequence=self._diagnoses)
+        self.rec.log("diagnosis/verdict", rr.TextLog(
+            f"{diag.passage_id}: {diag.verdict.upper()}, {found}, measured peak "
+            f"{diag.peak_force_measured / 1e3:.0f} kN, fit peak {diag.peak_force_fit / 1e3:.0f} kN"
+            + (f"; {'; '.join(diag.reasons)}" if diag.reasons else ""),
+            level=VERDICT_LEVELS[diag.verdict],
+        ))
+        self._diagnoses += 1
 
     def close(self) -> None:
         """Flush and write the footer."""

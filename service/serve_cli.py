@@ -116,6 +116,9 @@ def run(args: argparse.Namespace) -> int:
             where = ", ".join(listen) if listen else "(from config)"
             print(f"railtwin serve: site {site.site_id!r} ({site.length:g} m, {site.contact}), "
                   f"listening on {where}; passages on {twin.keys.passage}", flush=True)
+            if twin.diagnoser is not None:
+                print(f"railtwin serve: diagnosis on, measurements on {twin.keys.measured} "
+                      f"(pairing timeout {site.diagnosis.pairing_timeout:g} s)", flush=True)
             if recorder is not None:
                 print(f"railtwin serve: recording to {args.recordings}/{stem}*", flush=True)
             print("railtwin serve: ready", flush=True)
@@ -123,8 +126,8 @@ def run(args: argparse.Namespace) -> int:
                 pass
             twin.stop()
             h = twin.health()
-            print(f"railtwin serve: stopped after {h.passages_done} passages, {h.errors} errors",
-                  flush=True)
+            print(f"railtwin serve: stopped after {h.passages_done} passages, "
+                  f"{twin.diagnoses_done} diagnoses, {h.errors} errors", flush=True)
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)

@@ -15,6 +15,15 @@ With ``pace="realtime"`` the series are published in chunks when the wheel
 would reach their end (a pacer thread), and the result when it leaves the site.
 Queryables answer ``railtwin/<site>/rail`` (``RailState``) and
 ``railtwin/health`` (``Health``).
+
+Diagnosis (with the site's own physics, ``SitePhysics``): measured passages come in on
+``railtwin/<site>/measured`` (``MeasuredPassage``) through the same queue and worker.
+The worker pairs each with the ``WheelPassage`` of the same ``passage_id``, in either
+order of arrival (the last 10 000 valid passages are kept; at most 1 000 measurements
+wait), diagnoses it (``service.diagnosis.Diagnoser``) and publishes the ``Diagnosis``
+on ``railtwin/<site>/diagnosis/<passage>``. A measurement whose passage has not come
+within the site's ``diagnosis.pairing_timeout`` gets an ``unpaired`` ServiceError; a
+bad or duplicate one an ``invalid_measurement`` one (``invalid_json`` if not JSON).
 """
 
 from __future__ import annotations
@@ -24,16 +33,20 @@ import contextlib
 import heapq
 import json
 import queue
+import sys
 import threading
 import time
+from collections import OrderedDict
 from dataclasses import dataclass, field
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import zenoh
 from pydantic import BaseModel, ValidationError
 
+from schemas.diagnosis import Diagnosis, MeasuredPassage
 from schemas.errors import format_path
 from schemas.messages import (
+    ErrorKind,
     FieldProblem,
     Health,
     PassageResult,
@@ -48,6 +61,9 @@ from schemas.site import SiteConfig
 from service.keyspace import HEALTH_KEY, SiteKeys
 from service.physics import PassageSimulator
 from service.recorder import RecorderFront
+
+if TYPE_CHECKING:
+    from service.diagnosis import Diagnoser
 
 Pace = Literal["fast", "realtime"]
 
@@ -78,13 +94,33 @@ class _Due:
     data: bytes = field(compare=False)
 
 
+@dataclass(frozen=True)
+class _Waiting:
+    """A valid measurement waiting for its passage."""
+
+    measured: MeasuredPassage
+    item: Inbound
+    deadline: float
+
+
 _STOP = object()
+
+KEPT_PASSAGES = 10_000
+"""Valid passages kept (by id, the latest) for measurements that arrive after them."""
+
+MAX_WAITING_MEASUREMENTS = 1_000
+"""Measurements waiting for their passage; beyond, the oldest is dropped as unpaired."""
+
+KEPT_DIAGNOSED = 10_000
+"""Passage ids already diagnosed (by id, the latest): a second measurement is refused."""
 
 
 def service_error_from_validation(
-    exc: ValidationError, payload: bytes, site_id: str, received_at: float
+    exc: ValidationError, payload: bytes, site_id: str, received_at: float,
+    model: type[BaseModel] = WheelPassage,
 ) -> ServiceError:
-    """A ServiceError naming the offending fields of a payload that is not a WheelPassage."""
+    """A ServiceError naming the offending fields of a payload that is not a ``model``
+    (a WheelPassage: kind ``invalid_passage``; a MeasuredPassage: ``invalid_measurement``)."""
     try:
         raw: Any = json.loads(payload)
     except ValueError:
@@ -99,14 +135,17 @@ def service_error_from_validation(
     invalid_json = any(p.type == "json_invalid" for p in problems)
     first = problems[0] if problems else None
     field_name = first.field if first is not None and first.field else None
-    head = "not JSON" if invalid_json else "not a valid WheelPassage"
+    head = "not JSON" if invalid_json else f"not a valid {model.__name__}"
     detail = f"{first.field or '(whole message)'}: {first.message}" if first else ""
     more = f" (+{len(problems) - 1} more)" if len(problems) > 1 else ""
     passage_id = raw.get("passage_id") if isinstance(raw, dict) else None
+    measurement = model is MeasuredPassage
+    invalid: ErrorKind = "invalid_measurement" if measurement else "invalid_passage"
+    what = "measurement" if measurement else "passage"
     return ServiceError(
         site_id=site_id,
-        kind="invalid_json" if invalid_json else "invalid_passage",
-        message=f"passage rejected, {head}: {detail}{more}",
+        kind="invalid_json" if invalid_json else invalid,
+        message=f"{what} rejected, {head}: {detail}{more}",
         field=field_name,
         problems=problems,
         passage_id=passage_id if isinstance(passage_id, str) else None,
@@ -139,7 +178,7 @@ class Twin:
         self._queue: queue.Queue[Any] = queue.Queue(maxsize=queue_capacity)
         self._encodings: dict[type[BaseModel], zenoh.Encoding] = {
             m: json_encoding(m)
-            for m in (PassageSeries, PassageResult, ServiceError, RailState, Health)
+            for m in (PassageSeries, PassageResult, ServiceError, RailState, Health, Diagnosis)
         }
         self.started_at = time.time()
         self._started_mono = time.monotonic()
@@ -147,6 +186,17 @@ class Twin:
         self.passages_done = 0
         self.errors = 0
         self.last_error: ServiceError | None = None
+        self.measured_received = 0
+        self.diagnoses_done = 0
+        self.diagnoser: Diagnoser | None = None
+        site_physics = sys.modules.get("service.site_physics")  # loaded if physics is one
+        if site_physics is not None and isinstance(physics, site_physics.SitePhysics):
+            from service.diagnosis import Diagnoser
+
+            self.diagnoser = Diagnoser(site, physics=physics)
+        self._passages: OrderedDict[str, WheelPassage] = OrderedDict()
+        self._waiting: OrderedDict[str, _Waiting] = OrderedDict()
+        self._diagnosed: OrderedDict[str, None] = OrderedDict()
         self._worker = threading.Thread(target=self._work, name="railtwin-worker", daemon=True)
         self._due: list[_Due] = []
         self._due_seq = 0
@@ -170,6 +220,7 @@ class Twin:
             s.declare_queryable(self.keys.rail, self._on_rail_query),
             s.declare_queryable(HEALTH_KEY, self._on_health_query),
             s.declare_subscriber(self.keys.passage, self._on_sample),
+            s.declare_subscriber(self.keys.measured, self._on_measured),
         ]
 
     def stop(self) -> None:
@@ -206,6 +257,22 @@ class Twin:
                 field=None, received_at=item.received_ns / 1e9,
             ))
 
+    def _on_measured(self, sample: zenoh.Sample) -> None:
+        item = Inbound(
+            key=str(sample.key_expr), payload=sample.payload.to_bytes(),
+            received_ns=time.time_ns(), received_mono=time.monotonic(),
+        )
+        self.measured_received += 1
+        try:
+            self._queue.put_nowait(item)
+        except queue.Full:
+            self._log_input(item, None)
+            self._publish_error(ServiceError(
+                site_id=self.site.site_id, kind="overloaded",
+                message=f"measurement dropped: {self.queue_capacity} inputs already waiting",
+                field=None, received_at=item.received_ns / 1e9,
+            ))
+
     def _on_rail_query(self, query: zenoh.Query) -> None:
         with query:
             try:
@@ -236,17 +303,29 @@ class Twin:
 
     def _work(self) -> None:
         while True:
-            item = self._queue.get()
+            timeout = None
+            if self._waiting:
+                first = next(iter(self._waiting.values()))
+                timeout = max(0.0, first.deadline - time.monotonic())
+            try:
+                item = self._queue.get(timeout=timeout)
+            except queue.Empty:
+                item = None
             if item is _STOP:
                 return
-            try:
-                self._serve(item)
-            except Exception as exc:  # never let one passage kill the service
-                self._publish_error(ServiceError(
-                    site_id=self.site.site_id, kind="simulation_failed",
-                    message=f"internal error: {type(exc).__name__}: {exc}", field=None,
-                    received_at=item.received_ns / 1e9,
-                ))
+            if item is not None:
+                try:
+                    if item.key == self.keys.measured:
+                        self._serve_measured(item)
+                    else:
+                        self._serve(item)
+                except Exception as exc:  # never let one input kill the service
+                    self._publish_error(ServiceError(
+                        site_id=self.site.site_id, kind="simulation_failed",
+                        message=f"internal error: {type(exc).__name__}: {exc}", field=None,
+                        received_at=item.received_ns / 1e9,
+                    ))
+            self._expire_waiting()
 
     def _serve(self, item: Inbound) -> None:
         try:
@@ -257,6 +336,15 @@ class Twin:
                 exc, item.payload, self.site.site_id, item.received_ns / 1e9))
             return
         self._log_input(item, passage)
+        self._keep_passage(passage)
+        try:
+            self._simulate(item, passage)
+        finally:  # the result goes out first; then the measurement waiting for it
+            waiting = self._waiting.pop(passage.passage_id, None)
+            if waiting is not None:
+                self._diagnose(passage, waiting.measured, waiting.item)
+
+    def _simulate(self, item: Inbound, passage: WheelPassage) -> None:
         try:
             result = self.physics.simulate(passage)
         except (ValueError, ArithmeticError, ValidationError) as exc:
@@ -274,19 +362,110 @@ class Twin:
             if result.summary.max_dent > 0.0:
                 self.recorder.dent(result.passage_id, self.physics.rail_state())
 
-    def _log_input(self, item: Inbound, passage: WheelPassage | None) -> None:
+    # --- diagnosis ---------------------------------------------------------------------
+
+    def _keep_passage(self, passage: WheelPassage) -> None:
+        kept = self._passages
+        kept.pop(passage.passage_id, None)
+        kept[passage.passage_id] = passage
+        while len(kept) > KEPT_PASSAGES:
+            kept.popitem(last=False)
+
+    def _measurement_error(self, item: Inbound, kind: Literal["invalid_measurement", "unpaired",
+                                                              "simulation_failed"],
+                           message: str, passage_id: str, field_name: str | None = None) -> None:
+        self._publish_error(ServiceError(
+            site_id=self.site.site_id, kind=kind, message=message, field=field_name,
+            passage_id=passage_id, received_at=item.received_ns / 1e9,
+        ))
+
+    def _serve_measured(self, item: Inbound) -> None:
+        try:
+            measured = MeasuredPassage.model_validate_json(item.payload)
+        except ValidationError as exc:
+            self._log_input(item, None)
+            self._publish_error(service_error_from_validation(
+                exc, item.payload, self.site.site_id, item.received_ns / 1e9, MeasuredPassage))
+            return
+        self._log_input(item, measured)
+        pid = measured.passage_id
+        if self.diagnoser is None:
+            self._measurement_error(
+                item, "simulation_failed", f"measurement of {pid} not diagnosed: diagnosis is "
+                "unavailable (it needs the site's own physics, --physics sim_core)", pid)
+            return
+        if pid in self._diagnosed or pid in self._waiting:
+            self._measurement_error(
+                item, "invalid_measurement", f"measurement of {pid} dropped: duplicate (the "
+                "passage already has a measurement)", pid, "passage_id")
+            return
+        passage = self._passages.get(pid)
+        if passage is not None:
+            self._diagnose(passage, measured, item)
+            return
+        timeout = self.site.diagnosis.pairing_timeout
+        self._waiting[pid] = _Waiting(measured, item, item.received_mono + timeout)
+        while len(self._waiting) > MAX_WAITING_MEASUREMENTS:
+            old_pid, old = self._waiting.popitem(last=False)
+            self._measurement_error(
+                old.item, "unpaired", f"measurement of {old_pid} dropped: its passage has not "
+                f"come and {MAX_WAITING_MEASUREMENTS} measurements are waiting", old_pid)
+
+    def _expire_waiting(self) -> None:
+        """Measurements whose passage did not come within the pairing timeout (oldest first)."""
+        now = time.monotonic()
+        timeout = self.site.diagnosis.pairing_timeout
+        while self._waiting:
+            pid, first = next(iter(self._waiting.items()))
+            if first.deadline > now:
+                return
+            del self._waiting[pid]
+            self._measurement_error(
+                first.item, "unpaired", f"measurement of {pid} not diagnosed: no passage "
+                f"{pid} within the pairing timeout of {timeout:g} s", pid)
+
+    def _diagnose(self, passage: WheelPassage, measured: MeasuredPassage, item: Inbound) -> None:
+        from service.diagnosis import MeasurementError
+
+        assert self.diagnoser is not None
+        pid = passage.passage_id
+        try:
+            diag, curves = self.diagnoser.diagnose(passage, measured)
+        except MeasurementError as exc:
+            self._measurement_error(item, "invalid_measurement",
+                                    f"measurement of {pid} rejected: {exc}", pid, exc.field)
+            return
+        except Exception as exc:  # never let one diagnosis kill the service
+            self._measurement_error(
+                item, "simulation_failed",
+                f"measurement of {pid} could not be diagnosed: {type(exc).__name__}: {exc}", pid)
+            return
+        self._diagnosed[pid] = None  # a refused measurement may be sent again, corrected
+        while len(self._diagnosed) > KEPT_DIAGNOSED:
+            self._diagnosed.popitem(last=False)
+        data = diag.model_dump_json().encode()
+        self._put(self.keys.diagnosis(pid), f"{self.keys.prefix}/diagnosis", Diagnosis, data)
+        self.diagnoses_done += 1
+        if self.recorder is not None:
+            impacts_x = curves.impacts_t * curves.estimate.speed
+            self.recorder.diagnosis(diag, curves.t.tolist(), curves.measured.tolist(),
+                                    curves.fitted.tolist(), curves.x.tolist(), impacts_x.tolist())
+
+    def _log_input(self, item: Inbound, message: BaseModel | None) -> None:
         if self.recorder is None:
             return
-        if passage is not None:
-            self.recorder.message(self.keys.passage, WheelPassage, item.payload, item.received_ns)
+        measured = item.key == self.keys.measured
+        key = self.keys.measured if measured else self.keys.passage
+        if message is not None:
+            model = MeasuredPassage if measured else WheelPassage
+            self.recorder.message(key, model, item.payload, item.received_ns)
             return
         rejected = RejectedInput(
             key=item.key, payload_base64=base64.b64encode(item.payload).decode("ascii"),
             payload_text=item.payload.decode("utf-8", errors="replace"),
         )
         self.recorder.message(
-            f"{self.keys.passage}/rejected", RejectedInput,
-            rejected.model_dump_json().encode(), item.received_ns,
+            f"{key}/rejected", RejectedInput, rejected.model_dump_json().encode(), item.received_ns,
         )
 
     def _publish_error(self, error: ServiceError) -> None:
