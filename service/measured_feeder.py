@@ -23,7 +23,7 @@ import zenoh
 from schemas.diagnosis import Diagnosis, MeasuredPassage
 from schemas.messages import ServiceError
 from service.diagnosis import Diagnoser
-from service.feeder import load_train
+from service.feeder import load_train, wait_matching
 from service.keyspace import SiteKeys
 from service.site import load_site
 from service.synthesize import measure, passage_tread
@@ -60,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
     wheels = [w.passage for w in train.wheels if w.passage.axle_index in set(a.axles)]
     print(f"measured: generating the site's measurement of {len(wheels)} wheels "
           f"(axles {', '.join(str(w.axle_index) for w in wheels)})", flush=True)
-    payloads = []
+    payloads: list[MeasuredPassage] = []
     for i, w in enumerate(wheels):
         m = measure(site, w, passage_tread(w), seed=1000 + i, diagnoser=diagnoser)
         payloads.append(MeasuredPassage(passage_id=w.passage_id, sample_rate=m.sample_rate,
@@ -93,13 +93,11 @@ def main(argv: list[str] | None = None) -> int:
         sub = session.declare_subscriber(keys.all_outputs, on_output)
         pub = session.declare_publisher(keys.measured, encoding=json_encoding(MeasuredPassage),
                                         congestion_control=zenoh.CongestionControl.BLOCK)
-        deadline = time.monotonic() + 10.0
-        while not pub.matching_status.matching and time.monotonic() < deadline:
-            time.sleep(0.05)
-        for m in payloads:
+        wait_matching(pub, 10.0)
+        for mp in payloads:
             with lock:
-                sent[m.passage_id] = time.monotonic()
-            pub.put(m.model_dump_json().encode())
+                sent[mp.passage_id] = time.monotonic()
+            pub.put(mp.model_dump_json().encode())
             time.sleep(0.05)  # a train brings a wheel every ~50 ms
         ok = done.wait(a.timeout)
         sub.undeclare()
