@@ -4,6 +4,7 @@
 #   make demo     start the twin on loopback, stream a sample train through it, print a line per wheel
 #   make bench    run the benchmarks (benchmarks/run_all.py)
 #   make figures  draw the paper's figures into figures/
+#   make validate the wheel-flat diagnosis on 90 synthetic + 15 measured-tread passages (~2 min)
 #   make lint     ruff and mypy only
 #
 # The venv is (re)installed only when pyproject.toml changes (stamp file).
@@ -20,10 +21,10 @@ export NUMBA_CACHE_DIR ?= $(CURDIR)/$(VENV)/numba-cache
 export RERUN_ANALYTICS ?= 0
 export PIP_DISABLE_PIP_VERSION_CHECK := 1
 
-.PHONY: help venv test lint ruff mypy pytest demo bench figures clean
+.PHONY: help venv test lint ruff mypy pytest demo bench figures validate clean
 
 help:
-	@sed -n '2,10p' Makefile | sed 's/^# \{0,1\}//'
+	@sed -n '2,11p' Makefile | sed 's/^# \{0,1\}//'
 
 $(BIN)/python:
 	$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "railtwin needs Python >= 3.11, got " + sys.version.split()[0]'
@@ -61,6 +62,9 @@ demo: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python -m benchmarks.run_all
+
+validate: $(STAMP)
+	$(BIN)/python -m validation.diagnosis_validation
 
 figures: $(STAMP)
 	$(BIN)/railtwin figures --out figures/
