@@ -25,9 +25,14 @@ How crossings are found without stepping over them:
   plus the foundation's acceleration): an interval is discarded only if its
   end values and the bound prove δ < 0 inside it.
 
-Dense output is the quintic Hermite polynomial through the positions,
-velocities and accelerations at both step ends (exact for flight, O(h⁶) in
-contact), which DOP853 gives without extra stages.
+Dense output is the septic Hermite polynomial through the positions,
+velocities, accelerations and jerks at both step ends (exact for flight,
+O(h⁸) in contact): DOP853 gives the accelerations without extra stages and
+the jerks are F'(δ)·dδ/dt through the masses.
+
+Extrema (peak and least δ and force in contact) are taken from that continuous
+solution: at the step ends and where dδ/dt — or, with a curvature-dependent
+C(x), the rate of C(x)·δ^(3/2) — changes sign inside a step.
 
 Worked example: ``sim_core.passage.simulate_passage`` wraps this; see there.
 """
@@ -381,6 +386,46 @@ def _delta_rate(
 
 
 @numba.njit(cache=True)
+def _elastic_force_rate(
+    s: float,
+    t: float,
+    h: float,
+    coef: NDArray[np.float64],
+    par: NDArray[np.float64],
+    tx: NDArray[np.float64],
+    ty: NDArray[np.float64],
+    tsl: NDArray[np.float64],
+    tsr: NDArray[np.float64],
+    tscale: NDArray[np.float64],
+    period: float,
+    left: bool,
+) -> tuple[float, float]:
+    """(F, q) at fraction s of an elastic step with a stiffness scale C(x)/C = σ(x).
+
+    F = σ·C·δ^(3/2) and q = 1.5·σ·dδ/dt + V·σ'·δ, which has the sign of dF/dt
+    (dF/dt = C·√δ·q for δ > 0). σ is linear between table nodes, so q jumps at
+    nodes; a sign change of q across a node is a kink extremum of F there.
+    ``left``: read slopes just before the position (a step ending on a kink).
+    """
+    yc, vc, ym, vm = _dense(s, h, coef)
+    v = par[P_SPEED]
+    xv = _before(v * (t + s * h), left)
+    ck, dck, i = table_eval(tx, ty, tsl, tsr, period, xv, 0)
+    d = -yc + ck + ym
+    r = -vc + v * dck + vm
+    xw, _ = wrap(xv, tx[0], period)
+    dsc = 0.0
+    if xw <= tx[0]:
+        sc = tscale[0]
+    elif xw >= tx[tx.size - 1]:
+        sc = tscale[tx.size - 1]
+    else:
+        dsc = (tscale[i + 1] - tscale[i]) / (tx[i + 1] - tx[i])
+        sc = tscale[i] + (xw - tx[i]) * dsc
+    return _force(d, ELASTIC, par, sc), 1.5 * sc * r + v * dsc * d
+
+
+@numba.njit(cache=True)
 def _root(
     sa: float,
     ga: float,
@@ -696,7 +741,9 @@ def integrate(
 
     Returns:
         (status, samples[n, N_COLS], transition times, transition codes,
-         extrema [peak δ, min δ in contact, time out of contact],
+         extrema [peak δ, least δ in contact, time out of contact, time reached, mode
+         there, peak force, least force in contact] (the time and mode say where a
+         failed integration stopped),
          dent records [m, 3] (t, x_D, δ) taken while plastic,
          stats [steps, rejected, rhs evaluations], final state)
     """
@@ -724,9 +771,10 @@ def integrate(
     status = OK
     hint = 0
     t = t0
-    ck0, _, _, hint = _constraint(tx, ty, tsl, tsr, tscale, period, v * t, hint)
+    ck0, _, sc0, hint = _constraint(tx, ty, tsl, tsr, tscale, period, v * t, hint)
     delta0 = -y[0] + ck0 + y[2]
     mode = _mode_of(delta0, par)
+    scaled = tscale.size > 0
     ac, am, _, hint = _rhs(
         t, y[0], y[1], y[2], y[3], mode, par, tx, ty, tsl, tsr, tscale, period, hint
     )
@@ -738,6 +786,8 @@ def integrate(
     j0c, j0m, hint = _jerks(t, y, am, mode, par, tx, ty, tsl, tsr, period, hint, False)
     peak_delta = delta0
     min_delta = delta0 if mode != FLIGHT else 0.0
+    peak_f = _force(delta0, mode, par, sc0)
+    min_f = peak_f
     t_flight = 0.0
     nsteps = 0
     nrej = 0
@@ -1004,6 +1054,60 @@ def integrate(
                 d_m, _ = _delta_rate(sm, t, hstep, coef, par, tx, ty, tsl, tsr, period)
                 peak_delta = max(peak_delta, d_m)
                 min_delta = min(min_delta, d_m)
+                if not scaled or mode != ELASTIC:
+                    f_m = _force(d_m, mode, par, 1.0)
+                    peak_f = max(peak_f, f_m)
+                    min_f = min(min_f, f_m)
+            if not scaled or mode != ELASTIC:
+                # F rises with δ in every mode and σ only scales the elastic branch: the
+                # extrema of F are those of δ
+                f_a = _force(d_a, mode, par, 1.0)
+                f_b = _force(d_b, mode, par, 1.0)
+                peak_f = max(peak_f, f_a, f_b)
+                min_f = min(min_f, f_a, f_b)
+            else:
+                # F = σ(x)·C·δ^(3/2): its extrema are not those of δ; locate them on q
+                f_a, q_a = _elastic_force_rate(
+                    0.0, t, hstep, coef, par, tx, ty, tsl, tsr, tscale, period, False
+                )
+                f_b, q_b = _elastic_force_rate(
+                    1.0, t, hstep, coef, par, tx, ty, tsl, tsr, tscale, period, True
+                )
+                peak_f = max(peak_f, f_a, f_b)
+                min_f = min(min_f, f_a, f_b)
+                if (q_a > 0.0 and q_b < 0.0) or (q_a < 0.0 and q_b > 0.0):
+                    sa = 0.0
+                    sb = 1.0
+                    qa = q_a
+                    qb = q_b
+                    side = 0
+                    sm = 0.5
+                    for _ in range(60):
+                        sm = (sa * qb - sb * qa) / (qb - qa)
+                        if not (sa < sm < sb):
+                            sm = 0.5 * (sa + sb)
+                        _, qm = _elastic_force_rate(
+                            sm, t, hstep, coef, par, tx, ty, tsl, tsr, tscale, period, False
+                        )
+                        if (qm > 0.0) == (qa > 0.0):
+                            sa = sm
+                            qa = qm
+                            if side == 1:
+                                qb *= 0.5
+                            side = 1
+                        else:
+                            sb = sm
+                            qb = qm
+                            if side == -1:
+                                qa *= 0.5
+                            side = -1
+                        if (sb - sa) * hstep < 1e-11:
+                            break
+                    f_m, _ = _elastic_force_rate(
+                        sm, t, hstep, coef, par, tx, ty, tsl, tsr, tscale, period, False
+                    )
+                    peak_f = max(peak_f, f_m)
+                    min_f = min(min_f, f_m)
             if mode == PLASTIC and track_dents:
                 npts = math.ceil(v * hstep / dent_dx) + 1
                 if n_dent + npts + 1 >= cap_dent:
@@ -1121,7 +1225,7 @@ def integrate(
                 # that the step holding the event is accepted and then redone onto it.
                 h = LOSS_AIM * d_b / -r_b
     stats = np.array([nsteps, nrej, nrhs], dtype=np.int64)
-    extrema = np.array([peak_delta, min_delta, t_flight, t, float(mode)])
+    extrema = np.array([peak_delta, min_delta, t_flight, t, float(mode), peak_f, min_f])
     return (
         status,
         samples,

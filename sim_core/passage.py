@@ -314,13 +314,14 @@ def simulate_passage(
     if status == integ.TOO_MANY_STEPS:
         raise IntegrationError(f"more than {max_steps} steps: raise max_steps or relax rtol")
     s = samples
-    peak_delta, min_delta, t_flight = (float(e) for e in extrema[:3])
+    peak_delta, _, t_flight = (float(e) for e in extrema[:3])
+    peak_force, least_force = float(extrema[5]), float(extrema[6])
     transitions = tuple(
         Transition(float(tt), TRANSITION_KINDS[int(kk)], float(tt * v))
         for tt, kk in zip(tr_t, tr_k, strict=True)
     )
     ever_lost = any(tr.kind == "loss" for tr in transitions) or t_flight > 0.0
-    min_force = 0.0 if ever_lost else float(spec.contact.force(min_delta)[0])
+    min_force = 0.0 if ever_lost else least_force
     if dents.shape[0] and law == ContactLaw.HERTZ_PLASTIC:
         dent_t, dent_x, dent_d = dents[:, 0], dents[:, 1], dents[:, 2]
     else:
@@ -343,7 +344,7 @@ def simulate_passage(
         steps=int(stats[0]),
         rejected_steps=int(stats[1]),
         rhs_evaluations=int(stats[2]),
-        peak_force=float(spec.contact.force(peak_delta)[0]) * scale0,
+        peak_force=peak_force,
         min_force=min_force,
         max_indentation=peak_delta,
         time_out_of_contact=t_flight,
