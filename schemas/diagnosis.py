@@ -53,7 +53,8 @@ class MeasuredPassage(StrictModel):
     t_start: Finite = Field(description="time of sample 0, s (t = 0: wheel centre at x = 0)")
     force: list[Finite] = Field(
         min_length=MIN_MEASURED_SAMPLES, max_length=MAX_MEASURED_SAMPLES,
-        description="measured vertical wheel–rail force, N",
+        description="measured vertical wheel–rail force, N; 16 to 2 000 000 samples (the whole "
+        "payload at most 64 MiB)",
     )
     speed: Positive | None = Field(
         default=None, le=150.0, description="speed as measured by the site, m/s (optional)"

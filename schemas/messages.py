@@ -33,15 +33,34 @@ from pydantic import BaseModel, Field, field_validator, model_validator
 
 from schemas._base import Finite, NonNegative, Positive, StrictModel, field_error
 from schemas.result import Summary, Transition
-from schemas.scenario import TWO_PI, Outline, RoundOutline
+from schemas.scenario import (
+    TWO_PI,
+    FlatOutline,
+    Outline,
+    RoundedFlatOutline,
+    RoundOutline,
+    SampledOutline,
+)
 
 MESSAGE_SCHEMA_VERSION: Literal["1.0"] = "1.0"
 """Version of the service's messages; a consumer accepts the same major version."""
 
 Version = Literal["1.0"]
 
+MAX_ID_LENGTH = 96
+"""Longest passage, train or site id (characters)."""
+
 KEY_CHUNK = r"^[A-Za-z0-9_.\-]{1,96}$"
-"""An identifier that is safe as one chunk of a Zenoh key (no ``/ * $ ? #``)."""
+"""An identifier that is safe as one chunk of a Zenoh key (no ``/ * $ ? #``), 1 to 96 long."""
+
+MAX_PASSAGE_SAMPLES = 150_000
+"""Cap on the samples of one passage, length/speed·output_sample_rate + 1 (``service.limits``)."""
+
+OUTPUT_BYTES_PER_SAMPLE = 225
+"""Bytes of JSON a passage publishes per sample, at most: nine series of ≤ 25 characters."""
+
+MAX_PASSAGE_OUTPUT_BYTES = 48 << 20
+"""Cap on the bytes one passage publishes (estimated as samples × OUTPUT_BYTES_PER_SAMPLE)."""
 
 Identifier = Annotated[str, Field(pattern=KEY_CHUNK)]
 
@@ -70,7 +89,13 @@ class WheelPassage(StrictModel):
     axle_index: int = Field(ge=0, description="axle number from the front of the train, 0-based")
     side: Literal["left", "right"] = Field(description="which rail/wheel of the axle")
     timestamp: Finite = Field(description="when the wheel centre entered the site, UNIX s (UTC)")
-    speed: Positive = Field(le=150.0, description="rolling speed V, m/s")
+    speed: Positive = Field(
+        le=150.0,
+        description="rolling speed V, m/s. A site refuses (invalid_passage, field speed) a speed "
+        "at which the passage would have more than MAX_PASSAGE_SAMPLES = 150 000 samples "
+        "(length/speed·output_sample_rate + 1) or publish more than 48 MiB: the lowest accepted "
+        "speed is length·output_sample_rate/149 999, e.g. 0.4 m/s on a 6 m site at 10 kHz",
+    )
     load: Positive = Field(description="vertical wheel load P (includes the unsprung weight), N")
     mass: Positive = Field(description="unsprung mass m per wheel, kg")
     radius: Positive = Field(le=2.0, description="nominal wheel radius R, m")
@@ -86,6 +111,38 @@ class WheelPassage(StrictModel):
     @classmethod
     def _wrap_phase(cls, v: float) -> float:
         return v % TWO_PI  # CONTRACT.md: any finite φ0, taken modulo 2π
+
+    @model_validator(mode="after")
+    def _check_geometry(self) -> WheelPassage:
+        """The outline must fit this wheel (else it validates but cannot be simulated)."""
+        check_outline_fits(self.outline, self.radius)
+        return self
+
+
+def check_outline_fits(o: Outline, r: float) -> None:
+    """Raise a field error when the outline does not fit a wheel of radius ``r`` (MODEL.md §2)."""
+    if isinstance(o, FlatOutline) and not o.length < 2.0 * r:
+        raise field_error(
+            "outline.length",
+            f"flat length {o.length!r} m must be < 2·radius = {2.0 * r!r} m "
+            "(a chord cannot be longer than the diameter)",
+        )
+    if isinstance(o, RoundedFlatOutline):
+        if not o.depth < r:
+            raise field_error("outline.depth", f"depth {o.depth!r} m must be < radius = {r!r} m")
+        if not o.length < TWO_PI * r:
+            raise field_error(
+                "outline.length",
+                f"length {o.length!r} m must be < 2π·radius = {TWO_PI * r!r} m (the circumference)",
+            )
+    if isinstance(o, SampledOutline):
+        for i, ri in enumerate(o.radius):
+            if abs(ri - r) > 0.1 * r:
+                raise field_error(
+                    f"outline.radius[{i}]",
+                    f"{ri!r} m is more than 10 % away from the wheel radius {r!r} m "
+                    "(a sampled outline is an out-of-roundness around R)",
+                )
 
 
 # --- out -----------------------------------------------------------------------------------
@@ -173,7 +230,10 @@ class ServiceError(StrictModel):
     message: str
     field: str | None = Field(description="the first offending field (dotted path), if any")
     problems: list[FieldProblem] = Field(default_factory=list)
-    passage_id: str | None = Field(default=None, description="the input's passage_id, if readable")
+    passage_id: str | None = Field(
+        default=None,
+        description="the input's passage_id, when it is a valid id (never an invalid one echoed)",
+    )
     received_at: Finite = Field(description="when the input arrived, UNIX s")
 
 
@@ -214,6 +274,11 @@ class RejectedInput(StrictModel):
     key: str = Field(description="the Zenoh key it arrived on")
     payload_base64: str = Field(description="the payload's bytes, base64")
     payload_text: str = Field(description="the payload decoded as UTF-8 (errors replaced)")
+    payload_bytes: int | None = Field(
+        default=None, ge=0,
+        description="set when the payload was too large to keep: its size in bytes (only its "
+        "first bytes are kept)",
+    )
 
 
 # --- files ---------------------------------------------------------------------------------

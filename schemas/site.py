@@ -37,6 +37,9 @@ from schemas.scenario import (
 MAX_SITE_SAMPLES = 2_000_000
 """Cap on samples per passage (length/speed·sample_rate at 1 m/s): keeps messages sane."""
 
+MAX_RAIL_POINTS = 200_000
+"""Cap on the points of a site's sampled (or file) rail: 10^6 points made one passage 9 s."""
+
 
 class FileRail(StrictModel):
     """A measured rail profile in a CSV file of ``x,y`` rows in metres (header optional)."""
@@ -61,7 +64,10 @@ class SiteConfig(StrictModel):
     output_sample_rate: Positive = Field(
         le=1e6, description="samples per second of the published series, Hz"
     )
-    rail: SiteRail = Field(description="the site's rail profile y_r(x), x from 0 to length")
+    rail: SiteRail = Field(
+        description="the site's rail profile y_r(x), x from 0 to length; a sampled or file rail "
+        f"has at most {MAX_RAIL_POINTS} points",
+    )
     material: Material
     contact: ContactName = Field(description="contact law (MODEL.md §3)")
     foundation: SiteFoundation = Field(default_factory=lambda: RigidFoundation(kind="rigid"))
@@ -76,6 +82,11 @@ class SiteConfig(StrictModel):
 
     @model_validator(mode="after")
     def _check(self) -> SiteConfig:
+        if isinstance(self.rail, SampledRail) and len(self.rail.x) > MAX_RAIL_POINTS:
+            raise field_error(
+                "rail.x", f"has {len(self.rail.x)} points, more than the {MAX_RAIL_POINTS} a "
+                "site's rail may have (resample the profile)",
+            )
         if self.contact != "hertz" and self.material.yield_stress is None:
             raise field_error(
                 "material.yield_stress", f"is required with contact {self.contact!r}"

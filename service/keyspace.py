@@ -42,6 +42,11 @@ class SiteKeys:
         return f"{self.prefix}/error"
 
     @property
+    def health(self) -> str:
+        """The site's own health queryable (``railtwin/health`` answers for every site)."""
+        return f"{self.prefix}/health"
+
+    @property
     def rail(self) -> str:
         return f"{self.prefix}/rail"
 

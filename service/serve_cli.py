@@ -9,6 +9,9 @@ Also runnable as ``python -m service.serve_cli ...`` (what the tests do).
 from __future__ import annotations
 
 import argparse
+import os
+import re
+import secrets
 import signal
 import sys
 import threading
@@ -16,8 +19,12 @@ import time
 from pathlib import Path
 from typing import Any
 
+import zenoh
+
+from service.limits import DEFAULT_PASSAGE_BUDGET, site_problem
 from service.mcap_log import DEFAULT_MAX_BYTES, DEFAULT_MAX_SECONDS
 from service.physics import PassageSimulator
+from service.physics_worker import ProcessPhysics
 from service.recorder_process import ProcessRecorder, RecordingPlan
 from service.site import SiteFileError, load_site
 from service.twin import Twin
@@ -51,8 +58,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="start a new MCAP file after this many seconds")
     p.add_argument("--queue", type=int, default=10_000,
                    help="passages that may wait (default 10000)")
+    p.add_argument("--passage-budget", type=float, default=DEFAULT_PASSAGE_BUDGET, metavar="S",
+                   help="wall-time budget of one passage or diagnosis in the physics worker; "
+                        f"past it the worker is restarted (default {DEFAULT_PASSAGE_BUDGET:g} s)")
     p.add_argument("--physics", choices=("sim_core", "stub"), default="sim_core",
                    help=argparse.SUPPRESS)
+    p.add_argument("--in-process", action="store_true", help=argparse.SUPPRESS)
 
 
 def register(subparsers: Any) -> argparse.ArgumentParser:
@@ -77,22 +88,55 @@ def make_physics(kind: str, site: Any) -> PassageSimulator:
     return SitePhysics(site)
 
 
+def one_line(exc: BaseException) -> str:
+    """The first sentence of a Zenoh error, without its source locations."""
+    text = re.sub(r"\s+at /\S+", "", str(exc)).replace("\n", " ")
+    return text[:300]
+
+
 def run(args: argparse.Namespace) -> int:
-    """Serve until SIGINT/SIGTERM; exit status 0 on a clean stop, 2 on a bad site file."""
+    """Serve until SIGINT/SIGTERM; exit status 0 on a clean stop, 2 on a bad site file,
+    1 when the Zenoh session cannot be opened (e.g. the port is taken)."""
     try:
         site = load_site(args.site)
     except SiteFileError as exc:
         print(f"railtwin serve: {exc}", file=sys.stderr)
         return 2
+    problem = site_problem(site)
+    if problem is not None:
+        print(f"railtwin serve: {args.site}: invalid site: {problem}", file=sys.stderr)
+        return 2
+    if not args.passage_budget > 0:
+        print("railtwin serve: --passage-budget must be > 0", file=sys.stderr)
+        return 2
     listen = args.listen or ([] if (args.zenoh_config or args.connect) else [DEFAULT_ENDPOINT])
     cfg = build_config(listen=listen, connect=args.connect, config_file=args.zenoh_config,
                        multicast_scouting=args.multicast_scouting)
-    physics = make_physics(args.physics, site)
-    warm_up = getattr(physics, "warm_up", None)
-    if warm_up is not None:
-        print(f"railtwin serve: physics warmed up in {warm_up():.1f} s", flush=True)
+    worker: ProcessPhysics | None = None
+    physics: PassageSimulator
+    if args.in_process:
+        physics = make_physics(args.physics, site)
+        warm_up = getattr(physics, "warm_up", None)
+        if warm_up is not None:
+            print(f"railtwin serve: physics warmed up in {warm_up():.1f} s", flush=True)
+    else:  # the compiled physics holds the GIL: it runs in a worker process
+        worker = ProcessPhysics(site, args.physics, budget=args.passage_budget)
+        seconds = worker.start()
+        physics = worker
+        print(f"railtwin serve: physics warmed up in {seconds:.1f} s (worker process "
+              f"{worker.pid}, budget {args.passage_budget:g} s a passage)", flush=True)
+    try:
+        return _serve(args, site, cfg, listen, physics)
+    finally:
+        if worker is not None:
+            worker.close()
+
+
+def _serve(args: argparse.Namespace, site: Any, cfg: zenoh.Config, listen: list[str],
+           physics: PassageSimulator) -> int:
     stamp = time.strftime("%Y%m%d-%H%M%S")
-    stem = f"railtwin-{site.site_id}-{stamp}"
+    # unique per run, not per second: two services started together keep both logs
+    stem = f"railtwin-{site.site_id}-{stamp}-{os.getpid()}{secrets.token_hex(2)}"
     recorder: ProcessRecorder | None = None
     if not (args.no_mcap and args.no_rerun):
         # MCAP and Rerun are written by a child process, off this interpreter's GIL
@@ -109,7 +153,15 @@ def run(args: argparse.Namespace) -> int:
 
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
-        with open_session(cfg) as session:
+        try:
+            session = open_session(cfg)
+        except zenoh.ZError as exc:
+            print(f"railtwin serve: cannot open the Zenoh session: {one_line(exc)}",
+                  file=sys.stderr, flush=True)
+            if recorder is not None:
+                recorder.close()
+            return 1
+        with session:
             twin = Twin(site, session, physics, recorder=recorder, pace=args.pace,
                         chunk_period=args.chunk_period, queue_capacity=args.queue)
             twin.start()

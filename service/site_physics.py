@@ -185,6 +185,17 @@ class SitePhysics:
 
     # --- rail state --------------------------------------------------------------------
 
+    def rail_snapshot(self) -> tuple[RailProfile, int, int]:
+        """(profile, revision, passages done): what a restarted worker needs to go on."""
+        rail = self._rail
+        return rail.profile, rail.revision, self._done
+
+    def restore_rail(self, profile: RailProfile, revision: int, done: int) -> None:
+        """Go on from a ``rail_snapshot`` (of a worker process that was stopped)."""
+        self._rail = _Rail(profile, revision)
+        self._done = done
+        self._tables.clear()
+
     def rail_state(self) -> RailState:
         rail, done = self._rail, self._done
         with self._state_lock:

@@ -37,8 +37,9 @@ import sys
 import threading
 import time
 from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Literal
+from typing import Any, Literal
 
 import zenoh
 from pydantic import BaseModel, ValidationError
@@ -58,12 +59,22 @@ from schemas.messages import (
     encoding_schema,
 )
 from schemas.site import SiteConfig
+from service import limits
 from service.keyspace import HEALTH_KEY, SiteKeys
 from service.physics import PassageSimulator
+from service.physics_worker import (
+    BudgetExceededError,
+    DiagnosisOutcome,
+    MeasurementRefusedError,
+    WorkerCrashedError,
+    diagnose_locally,
+)
 from service.recorder import RecorderFront
 
-if TYPE_CHECKING:
-    from service.diagnosis import Diagnoser
+DiagnoseFn = Callable[[WheelPassage, MeasuredPassage], DiagnosisOutcome]
+
+LOGGED_PREFIX_BYTES = 4096
+"""Bytes kept in the MCAP log of a payload refused for its size."""
 
 Pace = Literal["fast", "realtime"]
 
@@ -126,18 +137,19 @@ def service_error_from_validation(
     except ValueError:
         raw = None
     problems = []
-    for e in exc.errors(include_url=False):
-        path = format_path(tuple(e["loc"]), raw, e.get("ctx"))
+    errors = exc.errors(include_url=False)
+    for e in errors[:limits.MAX_PROBLEMS]:  # paths and messages clipped: inputs are not echoed
+        path = limits.clip(format_path(tuple(e["loc"]), raw, e.get("ctx")))
         ctx = e.get("ctx") or {}
         custom = e["type"] == "invalid_field" and "reason" in ctx
-        message = str(ctx["reason"]) if custom else e["msg"]
+        message = limits.clip(str(ctx["reason"]) if custom else e["msg"])
         problems.append(FieldProblem(field=path, message=message, type=e["type"]))
     invalid_json = any(p.type == "json_invalid" for p in problems)
     first = problems[0] if problems else None
     field_name = first.field if first is not None and first.field else None
     head = "not JSON" if invalid_json else f"not a valid {model.__name__}"
     detail = f"{first.field or '(whole message)'}: {first.message}" if first else ""
-    more = f" (+{len(problems) - 1} more)" if len(problems) > 1 else ""
+    more = f" (+{len(errors) - 1} more)" if len(errors) > 1 else ""
     passage_id = raw.get("passage_id") if isinstance(raw, dict) else None
     measurement = model is MeasuredPassage
     invalid: ErrorKind = "invalid_measurement" if measurement else "invalid_passage"
@@ -148,7 +160,7 @@ def service_error_from_validation(
         message=f"{what} rejected, {head}: {detail}{more}",
         field=field_name,
         problems=problems,
-        passage_id=passage_id if isinstance(passage_id, str) else None,
+        passage_id=limits.valid_id(passage_id),
         received_at=received_at,
     )
 
@@ -188,12 +200,15 @@ class Twin:
         self.last_error: ServiceError | None = None
         self.measured_received = 0
         self.diagnoses_done = 0
-        self.diagnoser: Diagnoser | None = None
+        self.diagnoser: DiagnoseFn | None = None
         site_physics = sys.modules.get("service.site_physics")  # loaded if physics is one
-        if site_physics is not None and isinstance(physics, site_physics.SitePhysics):
+        if getattr(physics, "diagnoses", False):  # a ProcessPhysics: diagnosed in its worker
+            self.diagnoser = physics.diagnose  # type: ignore[attr-defined]
+        elif site_physics is not None and isinstance(physics, site_physics.SitePhysics):
             from service.diagnosis import Diagnoser
 
-            self.diagnoser = Diagnoser(site, physics=physics)
+            local = Diagnoser(site, physics=physics)
+            self.diagnoser = lambda p, m: diagnose_locally(local, p, m)
         self._passages: OrderedDict[str, WheelPassage] = OrderedDict()
         self._waiting: OrderedDict[str, _Waiting] = OrderedDict()
         self._diagnosed: OrderedDict[str, None] = OrderedDict()
@@ -219,6 +234,7 @@ class Twin:
         self._declared = [
             s.declare_queryable(self.keys.rail, self._on_rail_query),
             s.declare_queryable(HEALTH_KEY, self._on_health_query),
+            s.declare_queryable(self.keys.health, self._on_health_query),
             s.declare_subscriber(self.keys.passage, self._on_sample),
             s.declare_subscriber(self.keys.measured, self._on_measured),
         ]
@@ -242,35 +258,42 @@ class Twin:
     # --- Zenoh callbacks (never block) -------------------------------------------------
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
-        item = Inbound(
-            key=str(sample.key_expr), payload=sample.payload.to_bytes(),
-            received_ns=time.time_ns(), received_mono=time.monotonic(),
-        )
         self.passages_received += 1
-        try:
-            self._queue.put_nowait(item)
-        except queue.Full:
-            self._log_input(item, None)
-            self._publish_error(ServiceError(
-                site_id=self.site.site_id, kind="overloaded",
-                message=f"passage dropped: {self.queue_capacity} passages already waiting",
-                field=None, received_at=item.received_ns / 1e9,
-            ))
+        self._take(sample, measured=False)
 
     def _on_measured(self, sample: zenoh.Sample) -> None:
-        item = Inbound(
-            key=str(sample.key_expr), payload=sample.payload.to_bytes(),
-            received_ns=time.time_ns(), received_mono=time.monotonic(),
-        )
         self.measured_received += 1
+        self._take(sample, measured=True)
+
+    def _take(self, sample: zenoh.Sample, measured: bool) -> None:
+        """Queue an input; refuse it at once when it is too large or the queue is full."""
+        received_ns, received_mono = time.time_ns(), time.monotonic()
+        key = str(sample.key_expr)
+        too_large = limits.payload_problem(len(sample.payload), measured)
+        if too_large is not None:  # refused unread: only its first bytes are logged
+            head = sample.payload.to_bytes()[:LOGGED_PREFIX_BYTES]
+            item = Inbound(key, head, received_ns, received_mono)
+            self._log_input(item, None, payload_bytes=len(sample.payload))
+            what = "measurement" if measured else "passage"
+            self._publish_error(ServiceError(
+                site_id=self.site.site_id,
+                kind="invalid_measurement" if measured else "invalid_passage",
+                message=f"{what} rejected: {too_large}", field=None,
+                problems=[FieldProblem(field="", message=too_large, type="payload_too_large")],
+                passage_id=limits.peek_passage_id(head), received_at=received_ns / 1e9,
+            ))
+            return
+        item = Inbound(key, sample.payload.to_bytes(), received_ns, received_mono)
         try:
             self._queue.put_nowait(item)
         except queue.Full:
             self._log_input(item, None)
+            what = "measurement" if measured else "passage"
             self._publish_error(ServiceError(
                 site_id=self.site.site_id, kind="overloaded",
-                message=f"measurement dropped: {self.queue_capacity} inputs already waiting",
-                field=None, received_at=item.received_ns / 1e9,
+                message=f"{what} dropped: {self.queue_capacity} inputs already waiting",
+                field=None, passage_id=limits.peek_passage_id(item.payload),
+                received_at=item.received_ns / 1e9,
             ))
 
     def _on_rail_query(self, query: zenoh.Query) -> None:
@@ -284,7 +307,7 @@ class Twin:
     def _on_health_query(self, query: zenoh.Query) -> None:
         with query:
             data = self.health().model_dump_json().encode()
-            query.reply(HEALTH_KEY, data, encoding=self._encodings[Health])
+            query.reply(query.key_expr, data, encoding=self._encodings[Health])
 
     def health(self) -> Health:
         mcap_path = self.recorder.mcap_path() if self.recorder is not None else None
@@ -327,13 +350,42 @@ class Twin:
                     ))
             self._expire_waiting()
 
+    def _too_deep(self, item: Inbound, measured: bool) -> bool:
+        """Refuse JSON nested deeper than ``limits.MAX_NESTING`` before it is parsed."""
+        if not limits.nesting_too_deep(item.payload):
+            return False
+        self._log_input(item, None)
+        what = "measurement" if measured else "passage"
+        message = f"JSON nested deeper than {limits.MAX_NESTING} levels"
+        self._publish_error(ServiceError(
+            site_id=self.site.site_id, kind="invalid_json",
+            message=f"{what} rejected, not JSON it may send: {message}", field=None,
+            problems=[FieldProblem(field="", message=message, type="json_too_deep")],
+            passage_id=limits.peek_passage_id(item.payload), received_at=item.received_ns / 1e9,
+        ))
+        return True
+
     def _serve(self, item: Inbound) -> None:
+        if self._too_deep(item, measured=False):
+            return
         try:
             passage = WheelPassage.model_validate_json(item.payload)
         except ValidationError as exc:
             self._log_input(item, None)
             self._publish_error(service_error_from_validation(
                 exc, item.payload, self.site.site_id, item.received_ns / 1e9))
+            return
+        problem = limits.passage_problem(self.site, passage)
+        if problem is not None:  # valid, but more than this site may spend on one passage
+            self._log_input(item, None)
+            field_name, message = problem
+            self._publish_error(ServiceError(
+                site_id=self.site.site_id, kind="invalid_passage",
+                message=f"passage rejected, over a limit: {field_name}: {message}",
+                field=field_name,
+                problems=[FieldProblem(field=field_name, message=message, type="over_limit")],
+                passage_id=passage.passage_id, received_at=item.received_ns / 1e9,
+            ))
             return
         self._log_input(item, passage)
         self._keep_passage(passage)
@@ -345,8 +397,19 @@ class Twin:
                 self._diagnose(passage, waiting.measured, waiting.item)
 
     def _simulate(self, item: Inbound, passage: WheelPassage) -> None:
+        simulate_json = getattr(self.physics, "simulate_json", None)
+        result_data: bytes | None = None
         try:
-            result = self.physics.simulate(passage)
+            if simulate_json is not None:
+                result, result_data = simulate_json(passage)
+            else:
+                result = self.physics.simulate(passage)
+        except (BudgetExceededError, WorkerCrashedError) as exc:
+            self._publish_error(ServiceError(
+                site_id=self.site.site_id, kind="simulation_failed", message=str(exc),
+                field=None, passage_id=passage.passage_id, received_at=item.received_ns / 1e9,
+            ))
+            return
         except (ValueError, ArithmeticError, ValidationError) as exc:
             self._publish_error(ServiceError(
                 site_id=self.site.site_id, kind="simulation_failed",
@@ -355,7 +418,7 @@ class Twin:
                 received_at=item.received_ns / 1e9,
             ))
             return
-        result_data = self._publish_result(result, item.received_mono)
+        result_data = self._publish_result(result, item.received_mono, result_data)
         self.passages_done += 1
         if self.recorder is not None:
             self.recorder.passage(result, result_data)
@@ -380,6 +443,8 @@ class Twin:
         ))
 
     def _serve_measured(self, item: Inbound) -> None:
+        if self._too_deep(item, measured=True):
+            return
         try:
             measured = MeasuredPassage.model_validate_json(item.payload)
         except ValidationError as exc:
@@ -425,21 +490,23 @@ class Twin:
                 f"{pid} within the pairing timeout of {timeout:g} s", pid)
 
     def _diagnose(self, passage: WheelPassage, measured: MeasuredPassage, item: Inbound) -> None:
-        from service.diagnosis import MeasurementError
-
         assert self.diagnoser is not None
         pid = passage.passage_id
         try:
-            diag, curves = self.diagnoser.diagnose(passage, measured)
-        except MeasurementError as exc:
+            outcome = self.diagnoser(passage, measured)
+        except MeasurementRefusedError as exc:
             self._measurement_error(item, "invalid_measurement",
                                     f"measurement of {pid} rejected: {exc}", pid, exc.field)
+            return
+        except (BudgetExceededError, WorkerCrashedError) as exc:
+            self._measurement_error(item, "simulation_failed", str(exc), pid)
             return
         except Exception as exc:  # never let one diagnosis kill the service
             self._measurement_error(
                 item, "simulation_failed",
                 f"measurement of {pid} could not be diagnosed: {type(exc).__name__}: {exc}", pid)
             return
+        diag = outcome.diagnosis
         self._diagnosed[pid] = None  # a refused measurement may be sent again, corrected
         while len(self._diagnosed) > KEPT_DIAGNOSED:
             self._diagnosed.popitem(last=False)
@@ -447,11 +514,11 @@ class Twin:
         self._put(self.keys.diagnosis(pid), f"{self.keys.prefix}/diagnosis", Diagnosis, data)
         self.diagnoses_done += 1
         if self.recorder is not None:
-            impacts_x = curves.impacts_t * curves.estimate.speed
-            self.recorder.diagnosis(diag, curves.t.tolist(), curves.measured.tolist(),
-                                    curves.fitted.tolist(), curves.x.tolist(), impacts_x.tolist())
+            self.recorder.diagnosis(diag, outcome.t, outcome.measured, outcome.fitted, outcome.x,
+                                    outcome.impacts_x)
 
-    def _log_input(self, item: Inbound, message: BaseModel | None) -> None:
+    def _log_input(self, item: Inbound, message: BaseModel | None,
+                   payload_bytes: int | None = None) -> None:
         if self.recorder is None:
             return
         measured = item.key == self.keys.measured
@@ -463,6 +530,7 @@ class Twin:
         rejected = RejectedInput(
             key=item.key, payload_base64=base64.b64encode(item.payload).decode("ascii"),
             payload_text=item.payload.decode("utf-8", errors="replace"),
+            payload_bytes=payload_bytes,
         )
         self.recorder.message(
             f"{key}/rejected", RejectedInput, rejected.model_dump_json().encode(), item.received_ns,
@@ -492,11 +560,13 @@ class Twin:
         )
         return msg.model_dump_json().encode()
 
-    def _publish_result(self, r: PassageResult, received_mono: float) -> bytes:
+    def _publish_result(self, r: PassageResult, received_mono: float,
+                        result_data: bytes | None = None) -> bytes:
         """Publish (or schedule) the series and the result; returns the result's JSON."""
         k = self.keys
         pid = r.passage_id
-        result_data = r.model_dump_json().encode()
+        if result_data is None:
+            result_data = r.model_dump_json().encode()
         if self.pace == "fast":
             n = len(r.x)
             self._put(k.force(pid), f"{k.prefix}/force", PassageSeries,

@@ -1,0 +1,163 @@
+"""What one message may cost the twin: every limit in one place (docs/service.md, "Limits").
+
+A wayside twin runs unattended; a single small message must not make it use
+more than a bounded amount of memory, output or time. The checks here run
+before (``payload_problem``, ``nesting_too_deep``) and after (``passage_problem``)
+the payload is parsed. Each refusal names the field that broke the limit.
+
+    >>> passage_samples(6.0, 10_000.0, 44.44)
+    1351
+    >>> round(lowest_speed(6.0, 10_000.0), 6)
+    0.400003
+    >>> nesting_too_deep(b'{"a": [[[[[[[[1]]]]]]]]}', 8)
+    True
+    >>> nesting_too_deep(b'{"a": "[[[[[[[[[[[[[[[[[["}', 8)
+    False
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from typing import TYPE_CHECKING
+
+from schemas.diagnosis import MAX_MEASURED_SAMPLES
+from schemas.messages import (
+    MAX_ID_LENGTH,
+    MAX_PASSAGE_OUTPUT_BYTES,
+    MAX_PASSAGE_SAMPLES,
+    OUTPUT_BYTES_PER_SAMPLE,
+    Identifier,
+    WheelPassage,
+)
+from schemas.scenario import MAX_OUTLINE_POINTS
+from schemas.site import MAX_RAIL_POINTS
+
+if TYPE_CHECKING:
+    from schemas.site import SiteConfig
+
+__all__ = [
+    "DEFAULT_PASSAGE_BUDGET",
+    "MAX_ID_LENGTH",
+    "MAX_MEASURED_PAYLOAD_BYTES",
+    "MAX_MEASURED_SAMPLES",
+    "MAX_NESTING",
+    "MAX_OUTLINE_POINTS",
+    "MAX_PASSAGE_OUTPUT_BYTES",
+    "MAX_PASSAGE_PAYLOAD_BYTES",
+    "MAX_PASSAGE_SAMPLES",
+    "MAX_RAIL_POINTS",
+    "OUTPUT_BYTES_PER_SAMPLE",
+    "Identifier",
+]
+
+MAX_PASSAGE_PAYLOAD_BYTES = 1 << 20
+"""A ``WheelPassage`` payload of more than 1 MiB is refused unread (a sampled outline at its
+cap of points is about 200 kB)."""
+
+MAX_MEASURED_PAYLOAD_BYTES = 64 << 20
+"""A ``MeasuredPassage`` payload of more than 64 MiB is refused unread (its cap of
+2 000 000 samples is at most ~50 MB of JSON)."""
+
+MAX_NESTING = 8
+"""JSON nested deeper than this (objects and arrays) is refused as ``invalid_json`` before it
+is parsed; the deepest valid input (a passage's sampled outline) is 3 deep."""
+
+DEFAULT_PASSAGE_BUDGET = 30.0
+"""s of wall time one passage (or one diagnosis) may take in the physics worker."""
+
+ERROR_TEXT_LIMIT = 400
+"""Characters of a field path or message kept in a ServiceError (inputs are never echoed)."""
+
+MAX_PROBLEMS = 20
+"""Field problems listed in one ServiceError."""
+
+_ID = re.compile(rf"[A-Za-z0-9_.\-]{{1,{MAX_ID_LENGTH}}}")
+_BRACKETS = re.compile(rb'"(?:[^"\\]|\\.)*"|[\[\]{}]', re.DOTALL)
+_PASSAGE_ID = re.compile(
+    rb'"passage_id"\s*:\s*"([A-Za-z0-9_.\-]{1,' + str(MAX_ID_LENGTH).encode() + rb'})"')
+
+
+def valid_id(value: object) -> str | None:
+    """``value`` if it is a valid passage/train id (a Zenoh key chunk), else None."""
+    return value if isinstance(value, str) and _ID.fullmatch(value) else None
+
+
+def clip(text: str, limit: int = ERROR_TEXT_LIMIT) -> str:
+    """``text`` cut to ``limit`` characters (with a note of how much was cut)."""
+    if len(text) <= limit:
+        return text
+    return f"{text[:limit]}… ({len(text) - limit} more characters)"
+
+
+def peek_passage_id(payload: bytes, window: int = 4096) -> str | None:
+    """The passage id of an unparsed payload, when a valid one is in its first ``window`` bytes."""
+    m = _PASSAGE_ID.search(payload[:window])
+    return m.group(1).decode("ascii") if m else None
+
+
+def payload_problem(size: int, measured: bool) -> str | None:
+    """Why a payload of ``size`` bytes is refused unread, or None."""
+    cap = MAX_MEASURED_PAYLOAD_BYTES if measured else MAX_PASSAGE_PAYLOAD_BYTES
+    if size <= cap:
+        return None
+    what = "MeasuredPassage" if measured else "WheelPassage"
+    return f"payload of {size} bytes is larger than the {cap} bytes a {what} may have; not read"
+
+
+def nesting_too_deep(payload: bytes, limit: int = MAX_NESTING) -> bool:
+    """Whether the JSON text nests objects/arrays deeper than ``limit`` (strings skipped)."""
+    if payload.count(b"[") + payload.count(b"{") <= limit:
+        return False
+    depth = 0
+    for m in _BRACKETS.finditer(payload):
+        c = m.group(0)
+        if c in (b"[", b"{"):
+            depth += 1
+            if depth > limit:
+                return True
+        elif c in (b"]", b"}"):
+            depth -= 1
+    return False
+
+
+def passage_samples(length: float, sample_rate: float, speed: float) -> int:
+    """Samples of one passage: x from 0 to ``length`` at ``speed``, ``sample_rate`` Hz."""
+    return math.floor(length / speed * sample_rate * (1.0 + 1e-12)) + 1
+
+
+def max_samples() -> int:
+    """The binding cap: the sample cap, or fewer if the output bytes cap is tighter."""
+    return min(MAX_PASSAGE_SAMPLES, MAX_PASSAGE_OUTPUT_BYTES // OUTPUT_BYTES_PER_SAMPLE)
+
+
+def lowest_speed(length: float, sample_rate: float) -> float:
+    """The lowest speed a site accepts, m/s: length·sample_rate / (max_samples() − 1)."""
+    return length * sample_rate / (max_samples() - 1)
+
+
+def passage_problem(site: SiteConfig, passage: WheelPassage) -> tuple[str, str] | None:
+    """(field, message) when a valid passage is still too much for this site, else None."""
+    n = passage_samples(site.length, site.output_sample_rate, passage.speed)
+    floor = lowest_speed(site.length, site.output_sample_rate)
+    if n > MAX_PASSAGE_SAMPLES:
+        return "speed", (
+            f"speed {passage.speed:g} m/s would take {n} samples over the site "
+            f"({site.length:g} m at {site.output_sample_rate:g} Hz), more than the "
+            f"{MAX_PASSAGE_SAMPLES} a passage may have; the lowest speed here is {floor:.6g} m/s")
+    out = n * OUTPUT_BYTES_PER_SAMPLE
+    if out > MAX_PASSAGE_OUTPUT_BYTES:
+        return "speed", (
+            f"speed {passage.speed:g} m/s would publish about {out} bytes ({n} samples), more "
+            f"than the {MAX_PASSAGE_OUTPUT_BYTES} bytes a passage may; the lowest speed here "
+            f"is {floor:.6g} m/s")
+    return None
+
+
+def site_problem(site: SiteConfig) -> str | None:
+    """Why a (resolved) site cannot be served, or None: its rail's points (a file rail too)."""
+    x = getattr(site.rail, "x", None)
+    if x is not None and len(x) > MAX_RAIL_POINTS:
+        return (f"rail: {len(x)} points, more than the {MAX_RAIL_POINTS} a site's rail may have "
+                "(resample the profile)")
+    return None

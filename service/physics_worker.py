@@ -1,0 +1,292 @@
+"""The site's physics in a worker process, so that the twin never goes deaf.
+
+The compiled physics (numba) never releases the GIL: run in the service's own
+process, one long passage would stop the Zenoh callbacks, the health and rail
+queryables, the overload policy and the signal handler for as long as it runs.
+``ProcessPhysics`` runs a ``SitePhysics`` (and the diagnosis) in a child process
+started with the ``spawn`` context; the twin's worker thread sends it a validated
+passage and waits for the result on a pipe, with the GIL released.
+
+Each call has a wall-time budget (``--passage-budget``, default 30 s). A call
+that overruns it is aborted by killing the child; a new child is started from
+the rail as it was after the last passage (a plastic site's dents are kept: the
+child returns the dented rail with every result that dented it) and the call
+raises ``BudgetExceededError``, which the twin reports as ``simulation_failed``.
+
+The rail state (``RailState``) is cached here, so ``railtwin/<site>/rail`` is
+answered without asking the child.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import signal
+import threading
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+from schemas.diagnosis import Diagnosis, MeasuredPassage
+from schemas.messages import PassageResult, RailState, WheelPassage
+from schemas.site import SiteConfig
+
+if TYPE_CHECKING:
+    from multiprocessing.connection import Connection
+    from multiprocessing.process import BaseProcess
+
+START_TIMEOUT = 600.0
+"""s a new worker may take to import, compile (first run without a cache) and warm up."""
+
+
+class BudgetExceededError(RuntimeError):
+    """A call took longer than its wall-time budget; the worker was killed and restarted."""
+
+    def __init__(self, what: str, budget: float) -> None:
+        super().__init__(f"{what} aborted: it took longer than the wall-time budget of "
+                         f"{budget:g} s a passage (--passage-budget)")
+        self.budget = budget
+
+
+class WorkerCrashedError(RuntimeError):
+    """The worker process died during a call (e.g. killed for memory); it was restarted."""
+
+
+class MeasurementRefusedError(ValueError):
+    """A measurement that cannot be diagnosed; ``field`` names what is wrong."""
+
+    def __init__(self, field: str, message: str) -> None:
+        super().__init__(f"{field}: {message}")
+        self.field = field
+        self.message = message
+
+
+@dataclass(frozen=True)
+class DiagnosisOutcome:
+    """A diagnosis and the curves the Rerun recording draws."""
+
+    diagnosis: Diagnosis
+    t: list[float]
+    measured: list[float]
+    fitted: list[float]
+    x: list[float]
+    impacts_x: list[float]
+
+
+def make_physics(kind: str, site: SiteConfig) -> Any:
+    """The physics ``kind`` (``sim_core`` or ``stub``) of ``site``, in this process."""
+    if kind == "stub":
+        from service.stub_physics import StubPhysics
+
+        return StubPhysics(site)
+    from service.site_physics import SitePhysics
+
+    return SitePhysics(site)
+
+
+def diagnose_locally(diagnoser: Any, passage: WheelPassage,
+                     measured: MeasuredPassage) -> DiagnosisOutcome:
+    """Run ``service.diagnosis.Diagnoser.diagnose`` and keep what the twin needs."""
+    from service.diagnosis import MeasurementError
+
+    try:
+        diag, curves = diagnoser.diagnose(passage, measured)
+    except MeasurementError as exc:
+        raise MeasurementRefusedError(exc.field, exc.message) from exc
+    impacts_x = curves.impacts_t * curves.estimate.speed
+    return DiagnosisOutcome(diag, curves.t.tolist(), curves.measured.tolist(),
+                            curves.fitted.tolist(), curves.x.tolist(), impacts_x.tolist())
+
+
+# --- the child ---------------------------------------------------------------------------------
+
+
+def _child_main(site: SiteConfig, kind: str, conn: Connection, snapshot: Any) -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the service stops us, not the terminal
+    from pydantic import ValidationError
+
+    physics = make_physics(kind, site)
+    if snapshot is not None and hasattr(physics, "restore_rail"):
+        physics.restore_rail(*snapshot)
+    diagnoser: Any = None
+    while True:
+        try:
+            msg = conn.recv()
+        except (EOFError, OSError):  # the service is gone
+            return
+        op = msg[0]
+        try:
+            if op == "warm_up":
+                warm_up = getattr(physics, "warm_up", None)
+                seconds = warm_up() if warm_up is not None and msg[1] else 0.0
+                conn.send(("ok", seconds, physics.rail_state()))
+            elif op == "simulate":
+                result = physics.simulate(msg[1])
+                data = result.model_dump_json().encode()
+                dented = None
+                if result.summary.max_dent > 0.0 and hasattr(physics, "rail_snapshot"):
+                    dented = (physics.rail_snapshot(), physics.rail_state())
+                conn.send(("ok", result, data, dented))
+            elif op == "diagnose":
+                if diagnoser is None:
+                    from service.diagnosis import Diagnoser
+
+                    diagnoser = Diagnoser(site, physics=physics)
+                conn.send(("ok", diagnose_locally(diagnoser, msg[1], msg[2])))
+            elif op == "stop":
+                conn.send(("ok",))
+                return
+            else:
+                conn.send(("internal", f"unknown request {op!r}"))
+        except MeasurementRefusedError as exc:
+            conn.send(("refused", exc.field, exc.message))
+        except (ValueError, ArithmeticError, ValidationError) as exc:
+            conn.send(("failed", str(exc)))
+        except Exception as exc:  # reported to the twin, the worker goes on
+            conn.send(("internal", f"{type(exc).__name__}: {exc}"))
+
+
+# --- the twin's side ---------------------------------------------------------------------------
+
+
+class ProcessPhysics:
+    """``service.physics.PassageSimulator`` (and diagnosis) in a worker process.
+
+    One call at a time; ``rail_state`` never waits for the worker.
+    """
+
+    def __init__(self, site: SiteConfig, kind: str = "sim_core", *, budget: float = 30.0,
+                 warm_up: bool = True, start_timeout: float = START_TIMEOUT) -> None:
+        self.site = site
+        self.kind = kind
+        self.budget = budget
+        self.warm_up_enabled = warm_up
+        self.start_timeout = start_timeout
+        self.restarts = 0
+        self.warm_up_seconds = 0.0
+        self._ctx = multiprocessing.get_context("spawn")
+        self._proc: BaseProcess | None = None
+        self._conn: Connection | None = None
+        self._lock = threading.Lock()
+        self._snapshot: Any = None
+        self._state: RailState | None = None
+        self._done = 0
+
+    @property
+    def diagnoses(self) -> bool:
+        """Whether this physics can diagnose measurements (the site's own physics)."""
+        return self.kind == "sim_core"
+
+    @property
+    def pid(self) -> int | None:
+        return self._proc.pid if self._proc is not None else None
+
+    def start(self) -> float:
+        """Start the worker and warm it up; returns the warm-up's seconds (in the worker)."""
+        with self._lock:
+            self._spawn()
+        return self.warm_up_seconds
+
+    def _spawn(self) -> None:
+        parent, child = self._ctx.Pipe()
+        proc = self._ctx.Process(target=_child_main, name="railtwin-physics",
+                                 args=(self.site, self.kind, child, self._snapshot), daemon=True)
+        proc.start()
+        child.close()
+        self._proc, self._conn = proc, parent
+        parent.send(("warm_up", self.warm_up_enabled))
+        if not parent.poll(self.start_timeout):
+            self._kill()
+            raise RuntimeError(f"the physics worker did not start within {self.start_timeout:g} s")
+        try:
+            reply = parent.recv()
+        except EOFError as exc:
+            self._kill()
+            raise RuntimeError("the physics worker died while starting") from exc
+        if reply[0] != "ok":
+            raise RuntimeError(f"the physics worker failed to start: {reply[1:]}")
+        self.warm_up_seconds = float(reply[1])
+        if self._state is None:
+            self._state = reply[2]
+
+    def _kill(self) -> None:
+        proc, conn = self._proc, self._conn
+        self._proc = self._conn = None
+        if conn is not None:
+            conn.close()
+        if proc is not None and proc.is_alive():
+            proc.kill()
+        if proc is not None:
+            proc.join(5.0)
+
+    def _call(self, what: str, msg: tuple[Any, ...]) -> tuple[Any, ...]:
+        with self._lock:
+            if self._conn is None:
+                self._spawn()
+            conn = self._conn
+            assert conn is not None
+            try:
+                conn.send(msg)
+                if not conn.poll(self.budget):
+                    self._kill()
+                    self.restarts += 1
+                    self._spawn()
+                    raise BudgetExceededError(what, self.budget)
+                reply: tuple[Any, ...] = conn.recv()
+            except (EOFError, OSError, BrokenPipeError) as exc:
+                code = self._proc.exitcode if self._proc is not None else None
+                self._kill()
+                self.restarts += 1
+                self._spawn()
+                raise WorkerCrashedError(f"{what}: the physics worker died (exit code {code}); "
+                                    "it was restarted") from exc
+        kind = reply[0]
+        if kind == "ok":
+            return reply
+        if kind == "refused":
+            raise MeasurementRefusedError(reply[1], reply[2])
+        if kind == "failed":
+            raise ValueError(reply[1])
+        raise RuntimeError(f"{what}: {reply[1]}")
+
+    # --- PassageSimulator ------------------------------------------------------------------
+
+    def simulate_json(self, passage: WheelPassage) -> tuple[PassageResult, bytes]:
+        """The result of ``passage`` and its JSON (made in the worker)."""
+        _, result, data, dented = self._call(f"passage {passage.passage_id}",
+                                             ("simulate", passage))
+        self._done += 1
+        if dented is not None:  # a plastic site's new rail: a restarted worker goes on from it
+            self._snapshot, self._state = dented
+        elif self._snapshot is not None:
+            profile, revision, _ = self._snapshot
+            self._snapshot = (profile, revision, self._done)
+        return result, data
+
+    def simulate(self, passage: WheelPassage) -> PassageResult:
+        return self.simulate_json(passage)[0]
+
+    def diagnose(self, passage: WheelPassage, measured: MeasuredPassage) -> DiagnosisOutcome:
+        out: DiagnosisOutcome = self._call(f"measurement of {passage.passage_id}",
+                                           ("diagnose", passage, measured))[1]
+        return out
+
+    def rail_state(self) -> RailState:
+        state = self._state
+        if state is None:
+            raise RuntimeError("the physics worker has not started")
+        return state.model_copy(update={"passages_done": self._done})
+
+    def close(self, timeout: float = 5.0) -> None:
+        """Stop the worker (at once if it is busy: the caller has stopped sending)."""
+        conn, proc = self._conn, self._proc
+        if conn is not None and proc is not None and self._lock.acquire(timeout=0.1):
+            try:
+                with contextlib.suppress(OSError, EOFError, BrokenPipeError):
+                    conn.send(("stop",))
+                    if conn.poll(timeout):
+                        conn.recv()
+                proc.join(timeout)
+            finally:
+                self._lock.release()
+        self._kill()
+
