@@ -98,7 +98,7 @@ def fig4(path: Path, quick: bool) -> Path:
         _phase(
             axs[0, i],
             run,
-            f"f = {run.frequency:g} Hz: {f['losses']} losses, "
+            f"{_frequency_label(run.frequency)}: {f['losses']} losses, "
             f"{100 * f['fraction_out_of_contact']:.1f} % out of contact",
         )
         ax = axs[1, i]
@@ -107,16 +107,27 @@ def fig4(path: Path, quick: bool) -> Path:
         ax.set_xlabel("time (excitation periods)")
         ax.set_ylabel("contact force F / P (-)")
         ax.set_title(
-            f"first 20 periods: F_max = {f['early_peak_force_over_load']:.1f} P", fontsize=9
+            f"first 20 periods: F_max = {f['early_peak_force_over_load']:.3g} P", fontsize=9
         )
         ax.grid(alpha=0.3)
     periods = r.runs[0].facts["periods"]
     fig.suptitle(
-        f"Fig. 4 — Hertz contact on the cosine rail, {periods} excitation periods: "
-        "phase portraits (top) and contact force (bottom)"
+        f"Fig. 4 — Hertz contact on the cosine rail at 56 Hz, f0 = {paper.F0:g} Hz and "
+        f"2f0 = {2 * paper.F0:g} Hz (the paper's ≈ 280 and 560 Hz), {periods} excitation "
+        "periods: phase portraits (top) and contact force (bottom)",
+        fontsize=10,
     )
     fig.tight_layout()
     return _save(fig, path)
+
+
+def _frequency_label(f: float) -> str:
+    """'f = 56 Hz', 'f = f0 = 270.6 Hz', 'f = 2f0 = 541.2 Hz'."""
+    if f == paper.F0:
+        return f"f = f0 = {f:g} Hz"
+    if f == 2.0 * paper.F0:
+        return f"f = 2f0 = {f:g} Hz"
+    return f"f = {f:g} Hz"
 
 
 def _static(path: Path, r: paper.StaticCurves, title: str, loading_label: str) -> Path:
@@ -171,8 +182,9 @@ def fig6(path: Path, quick: bool) -> Path:
             f"max gap {f['max_gap_m'] * 1e3:.2f} mm",
         )
     fig.suptitle(
-        "Fig. 6 — Johnson vs Hertz at 560 Hz on the cosine rail: phase portraits "
-        f"({r.runs[0].facts['periods']} periods)"
+        f"Fig. 6 — Johnson vs Hertz at 2f0 = {2 * paper.F0:g} Hz (the paper's ≈ 560 Hz) "
+        f"on the cosine rail: phase portraits ({r.runs[0].facts['periods']} periods)",
+        fontsize=10,
     )
     fig.tight_layout()
     return _save(fig, path)
