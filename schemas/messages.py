@@ -93,8 +93,8 @@ class WheelPassage(StrictModel):
         le=150.0,
         description="rolling speed V, m/s. A site refuses (invalid_passage, field speed) a speed "
         "at which the passage would have more than MAX_PASSAGE_SAMPLES = 150 000 samples "
-        "(length/speed·output_sample_rate + 1) or publish more than 48 MiB: the lowest accepted "
-        "speed is length·output_sample_rate/149 999, e.g. 0.4 m/s on a 6 m site at 10 kHz",
+        "(floor(length/speed·output_sample_rate) + 1) or publish more than 48 MiB: the speed "
+        "must be above length·output_sample_rate/150 000, e.g. 0.4 m/s on a 6 m site at 10 kHz",
     )
     load: Positive = Field(description="vertical wheel load P (includes the unsprung weight), N")
     mass: Positive = Field(description="unsprung mass m per wheel, kg")

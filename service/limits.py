@@ -7,8 +7,8 @@ the payload is parsed. Each refusal names the field that broke the limit.
 
     >>> passage_samples(6.0, 10_000.0, 44.44)
     1351
-    >>> round(lowest_speed(6.0, 10_000.0), 6)
-    0.400003
+    >>> lowest_speed(6.0, 10_000.0)
+    0.4
     >>> nesting_too_deep(b'{"a": [[[[[[[[1]]]]]]]]}', 8)
     True
     >>> nesting_too_deep(b'{"a": "[[[[[[[[[[[[[[[[[["}', 8)
@@ -132,8 +132,11 @@ def max_samples() -> int:
 
 
 def lowest_speed(length: float, sample_rate: float) -> float:
-    """The lowest speed a site accepts, m/s: length·sample_rate / (max_samples() − 1)."""
-    return length * sample_rate / (max_samples() - 1)
+    """The speed a passage must exceed at a site, m/s: length·sample_rate / max_samples().
+
+    Above it a passage has at most ``max_samples()`` samples; at it, one more.
+    """
+    return length * sample_rate / max_samples()
 
 
 def passage_problem(site: SiteConfig, passage: WheelPassage) -> tuple[str, str] | None:
@@ -144,13 +147,12 @@ def passage_problem(site: SiteConfig, passage: WheelPassage) -> tuple[str, str] 
         return "speed", (
             f"speed {passage.speed:g} m/s would take {n} samples over the site "
             f"({site.length:g} m at {site.output_sample_rate:g} Hz), more than the "
-            f"{MAX_PASSAGE_SAMPLES} a passage may have; the lowest speed here is {floor:.6g} m/s")
+            f"{MAX_PASSAGE_SAMPLES} a passage may have; the speed must be above {floor:.6g} m/s here")
     out = n * OUTPUT_BYTES_PER_SAMPLE
     if out > MAX_PASSAGE_OUTPUT_BYTES:
         return "speed", (
             f"speed {passage.speed:g} m/s would publish about {out} bytes ({n} samples), more "
-            f"than the {MAX_PASSAGE_OUTPUT_BYTES} bytes a passage may; the lowest speed here "
-            f"is {floor:.6g} m/s")
+            f"than the {MAX_PASSAGE_OUTPUT_BYTES} bytes a passage may; XX")
     return None
 
 

@@ -31,7 +31,7 @@ class StubPhysics:
         start = time.perf_counter()
         site = self.site
         duration = site.length / passage.speed
-        n = max(2, round(duration * site.output_sample_rate) + 1)
+        n = max(2, math.floor(duration * site.output_sample_rate * (1.0 + 1e-12)) + 1)  # as sim_core
         t = np.arange(n) / site.output_sample_rate
         x = passage.speed * t
         d0 = (passage.load / C_HERTZ) ** (2.0 / 3.0)
