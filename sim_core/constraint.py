@@ -69,6 +69,13 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from sim_core.constraint_polyline import (
+    flat_zones,
+    polyline_pieces,
+    rail_polyline,
+    supports_polyline,
+    sweep_kernel,
+)
 from sim_core.constraint_table import ConstraintTable
 from sim_core.constraint_wheel_pieces import N_K as PN_K
 from sim_core.constraint_wheel_pieces import N_SL as PN_SL
@@ -1247,6 +1254,8 @@ def tabulate_constraint(
         return _ideal_flat_on_flat(wheel, a, float(phase), step, resolution)
     if method == "auto" and supports_pieces(wheel, rail):
         return _tabulate_wheel_pieces(wheel, rail, a, b, float(phase), dx, resolution)
+    if method == "auto" and supports_polyline(wheel, rail):
+        return _tabulate_polyline(wheel, rail, a, b, float(phase), dx, resolution)
     if polyline:
         step = float(dx) if dx is not None else min(resolution, 1e-3)
     else:
@@ -1305,6 +1314,46 @@ def _tabulate_wheel_pieces(
         nodes[-1, _SR] = nodes[0, _SR]
         nodes[0, _K] = max(nodes[0, _K], nodes[-1, _K])
     return _table_from_nodes(nodes, periodic, resolution, step)
+
+
+def _tabulate_polyline(
+    wheel: WheelOutline,
+    rail: RailProfile,
+    a: float,
+    b: float,
+    phase: float,
+    dx: float | None,
+    resolution: float,
+) -> ConstraintTable:
+    """An out-of-round wheel on a sampled rail (sim_core.constraint_polyline).
+
+    The cell sweep inside the stretches where the wheel's out-of-roundness can reach the
+    contact (all of it for a sampled outline), the round wheel's closed form elsewhere.
+    """
+    R = wheel.nominal_radius
+    step = float(dx) if dx is not None else min(resolution, 1e-3)
+    margin = 0.01 + 2.0 * step
+    x0, x1 = a - margin, b + margin
+    poly = rail_polyline(rail, x0, x1, R)
+    P = polyline_pieces(wheel)
+    parts: list[NDArray[np.float64]] = []
+
+    def nint(lo: float, hi: float) -> int:
+        return max(math.ceil((hi - lo) / step), 2)
+
+    cur = x0
+    for za, zb in flat_zones(wheel, poly, phase, x0, x1):
+        if za > cur:
+            parts.append(_tabulate_poly(cur, za, nint(cur, za), R, poly.vx, poly.vy, 16))
+        parts.append(
+            sweep_kernel(P, R, poly.vx, poly.vy, poly.slope, phase, za, zb, nint(za, zb), HERMITE_TOL)
+        )
+        cur = zb
+    if cur < x1:
+        parts.append(_tabulate_poly(cur, x1, nint(cur, x1), R, poly.vx, poly.vy, 16))
+    nodes = np.concatenate(parts)
+    nodes = nodes[np.argsort(nodes[:, _X], kind="mergesort")]
+    return _table_from_nodes(nodes, 0.0, resolution, step)
 
 
 def profile_constraint(rail: RailProfile, x_start: float, x_end: float) -> ConstraintTable:

@@ -1,0 +1,686 @@
+"""Fast exact y_C^k of an out-of-round wheel on a polyline (sampled, file, dented) rail.
+
+On a polyline rail y_r(p) (vertices (x_i, y_i), segment slopes s_j) and a wheel cut into
+pieces (:func:`sim_core.constraint_wheel_pieces.wheel_pieces`: one smooth formula r(θ) each,
+marked convex or concave; the round part of a flat wheel is one arc), the objective of
+MODEL.md §2,
+
+    G(ψ) = y_r(x + ρ sin ψ) + ρ cos ψ - R,   ρ = r(ψ + φ),
+
+is cut in ψ into *cells* (piece g × segment j): on a cell the rail is the straight line of
+segment j, so G is unimodal on a convex piece (its maximum is the root of G', by safeguarded
+Newton; closed form tan ψ = s_j on an arc) and has its maximum at an end on a concave piece or
+a flat's chord. A cell ends either at a wheel vertex (the end of a piece, ψ = θ_v - φ) or at a
+rail vertex (the ψ with x + ρ sin ψ = x_i: Newton, closed form on an arc). The winner of
+y_C^k(x) is a *feature*:
+
+- ``T(g, j)``: the interior of piece g tangent to segment j;
+- ``W(g, j)``: the wheel vertex at the hi end of piece g on segment j;
+- ``V(g, i)``: rail vertex i under the interior of piece g.
+
+Each has a closed-form slope (envelope theorem at fixed ψ for T, at fixed θ for W, at fixed
+rail point for V). Pieces are numbered over all turns (piece k of turn m is g = m·n + k).
+
+A global solve at x evaluates the cells of the window of ψ that can win, a wheel point at ψ
+can only win if ``max rail + max bulge - R(1 - cos ψ)`` reaches the best so far (each segment
+is skipped by the same bound with its own heights). The sweep starts from grid nodes; between
+two nodes of different features the change is located by bisection on the winner among the
+two features' own cells (a few closed forms per step, to ~1e-13 m), and a global solve at the
+located point splits the interval if a third feature is on top there (kinks: non-adjacent
+features; C¹ handovers: a tangent point reaching a cell end). Between nodes of the same
+feature the midpoint is solved globally (a missed feature splits the interval) and compared
+with the cubic Hermite interpolant.
+
+For an ideal or rounded flat (r <= R everywhere), y_C^k equals the round wheel's constraint
+wherever the flat cannot reach the contact: any winning ψ has R(1 - cos ψ) <= Δy + d (Δy the
+rail's height range, d the flat's depth), so outside the *flat zones* |φ| <= θ_flat + ψ_max
+the round-wheel closed form (:func:`sim_core.constraint._tabulate_poly`) is exact, and the
+sweep above runs only inside the zones (a few % of the stretch).
+
+The wheel-independent work (the polyline with its extension, segment slopes) is made once per
+rail (:func:`rail_polyline`, cached per rail object) and reused by every wheel.
+"""
+
+from __future__ import annotations
+
+import math
+import weakref
+from typing import NamedTuple
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from sim_core.constraint_wheel_pieces import PIECE_ARC, PIECE_CHORD, wheel_pieces
+from sim_core.constraint_wheel_pieces import _drop as _drop_lb
+from sim_core.constraint_wheel_pieces import _piece_of, _rho, _shift
+from sim_core.rail import RailProfile
+from sim_core.wheel import TWO_PI, WheelOutline
+
+__all__ = ["RailPolyline", "flat_zones", "polyline_pieces", "rail_polyline", "supports_polyline"]
+
+# piece table columns (as in constraint_wheel_pieces)
+_T0, _T1, _KIND, _C0, _C1, _CEN, _CONC, _DRMAX = range(8)
+
+FT_T, FT_W, FT_V = 0, 1, 2
+"""Feature types: piece interior tangent to a segment, wheel vertex on a segment, rail vertex under a piece."""
+
+# node columns (the same as sim_core.constraint's _X, _V, _SL, _SR, _XD, _PL, _PR, _GL, _GR, _K)
+_X, _V, _SL, _SR, _XD, _K = 0, 1, 2, 3, 4, 9
+_NCOL = 10
+
+MAX_RAIL_SLOPE = 0.2
+"""The sweep is used on rails whose segments are no steeper than this (a step or a dented step's
+1e-12 m riser keeps the general ψ-search)."""
+
+CLIP = 0.5
+"""|ψ| bound (rad) of the cells of the restricted solves (x_D monotone in ψ inside)."""
+
+
+class RailPolyline(NamedTuple):
+    """The wheel-independent preprocessing of a polyline rail."""
+
+    vx: NDArray[np.float64]
+    vy: NDArray[np.float64]
+    slope: NDArray[np.float64]
+    ymax: float
+    ymin: float
+
+
+_CACHE: dict[int, tuple[weakref.ref[RailProfile], float, float, RailPolyline]] = {}
+
+
+def rail_polyline(rail: RailProfile, lo: float, hi: float, R: float) -> RailPolyline:
+    """The rail's vertices extended flat to cover [lo - 2R, hi + 2R], with segment slopes.
+
+    Cached per rail object (while it lives) for any request it covers: tabulating many
+    wheels on one rail does this once.
+    """
+    key = id(rail)
+    hit = _CACHE.get(key)
+    if hit is not None and hit[0]() is rail and hit[1] <= lo - 2 * R and hit[2] >= hi + 2 * R:
+        return hit[3]
+    a = min(lo, float(rail.x[0])) - 2 * R - 1.0
+    b = max(hi, float(rail.x[-1])) + 2 * R + 1.0
+    vx = np.concatenate(([a], rail.x, [b]))
+    vy = np.concatenate(([rail.y[0]], rail.y, [rail.y[-1]]))
+    poly = RailPolyline(vx, vy, np.diff(vy) / np.diff(vx), float(vy.max()), float(vy.min()))
+    for k in [k for k, v in _CACHE.items() if v[0]() is None]:
+        del _CACHE[k]
+    _CACHE[key] = (weakref.ref(rail), a, b, poly)
+    return poly
+
+
+def supports_polyline(wheel: WheelOutline, rail: RailProfile) -> bool:
+    """True if the polyline sweep applies: an out-of-round wheel on a gently sloped sampled rail."""
+    if wheel.kind == "round" or rail.kind != "sampled" or rail.x.size < 2:
+        return False
+    s = np.abs(np.diff(rail.y) / np.diff(rail.x))
+    return bool(s.max() <= MAX_RAIL_SLOPE)
+
+
+def polyline_pieces(wheel: WheelOutline) -> NDArray[np.float64]:
+    """The wheel's piece table with the round part of a flat as one arc (exact on any range)."""
+    P = wheel_pieces(wheel)
+    rows = [P[0].copy()]
+    for row in P[1:]:
+        if row[_KIND] == PIECE_ARC and rows[-1][_KIND] == PIECE_ARC:
+            rows[-1][_T1] = row[_T1]
+        else:
+            rows.append(row.copy())
+    return np.array(rows)
+
+
+def flat_zones(
+    wheel: WheelOutline, poly: RailPolyline, phase: float, x0: float, x1: float
+) -> list[tuple[float, float]]:
+    """Stretches of [x0, x1] where a flat can carry the wheel (elsewhere the round closed form is exact).
+
+    For a sampled outline: the whole stretch.
+    """
+    if wheel.kind not in ("ideal_flat", "rounded_flat"):
+        return [(x0, x1)]
+    R = wheel.nominal_radius
+    c = 1.0 - (poly.ymax - poly.ymin + wheel.flat_depth) / R
+    psimax = math.acos(max(c, -1.0))
+    w = wheel.flat_half_angle + 1.05 * psimax + 1e-6
+    out: list[tuple[float, float]] = []
+    m = math.floor((phase + x0 / R - w) / TWO_PI)
+    while True:
+        a = R * (TWO_PI * m - phase - w)
+        b = R * (TWO_PI * m - phase + w)
+        m += 1
+        if a >= x1:
+            break
+        if b <= x0:
+            continue
+        lo, hi = max(a, x0), min(b, x1)
+        if out and lo <= out[-1][1]:
+            out[-1] = (out[-1][0], hi)
+        else:
+            out.append((lo, hi))
+    return out
+
+
+# ======================================================================================
+# compiled kernels
+# ======================================================================================
+@numba.njit(cache=True, inline="always")
+def _seg_of(vx: NDArray[np.float64], p: float) -> int:
+    """j with vx[j] <= p < vx[j + 1], clamped to the segments."""
+    j = int(np.searchsorted(vx, p, side="right")) - 1
+    return min(max(j, 0), vx.size - 2)
+
+
+@numba.njit(cache=True)
+def _psi_at(
+    P: NDArray[np.float64], k: int, sh: float, R: float, x: float, phi: float, xv: float
+) -> float:
+    """ψ of piece k (turn shift sh) with x + ρ sin ψ = xv."""
+    u = (xv - x) / R
+    psi = math.asin(min(max(u, -1.0), 1.0))
+    if int(P[k, _KIND]) == PIECE_ARC:
+        return psi
+    for _ in range(12):
+        dr, r1, _ = _rho(P, k, R, psi + phi - sh)
+        rho = R + dr
+        sp = math.sin(psi)
+        f = x + rho * sp - xv
+        fp = r1 * sp + rho * math.cos(psi)
+        d = f / fp
+        psi -= d
+        if abs(d) <= 1e-17:
+            break
+    return psi
+
+
+@numba.njit(cache=True)
+def _g_line(
+    P: NDArray[np.float64],
+    k: int,
+    sh: float,
+    R: float,
+    x: float,
+    phi: float,
+    psi: float,
+    xj: float,
+    yj: float,
+    s: float,
+) -> tuple[float, float, float, float, float, float]:
+    """(G, G', G'', x_D, r - R, r') of piece k at ψ against the line of a segment (xj, yj, slope s)."""
+    dr, r1, r2 = _rho(P, k, R, psi + phi - sh)
+    rho = R + dr
+    sp = math.sin(psi)
+    cp = math.cos(psi)
+    h = math.sin(0.5 * psi)
+    xd = x + rho * sp
+    g = yj + s * (xd - xj) + dr * cp - 2.0 * R * h * h
+    gp = s * (r1 * sp + rho * cp) + r1 * cp - rho * sp
+    gpp = s * (r2 * sp + 2.0 * r1 * cp - rho * sp) + r2 * cp - 2.0 * r1 * sp - rho * cp
+    return g, gp, gpp, xd, dr, r1
+
+
+@numba.njit(cache=True, inline="always")
+def _slope_T(R: float, psi: float, r1: float, s: float) -> float:
+    return s * (1.0 + r1 * math.sin(psi) / R) + r1 * math.cos(psi) / R
+
+
+@numba.njit(cache=True, inline="always")
+def _slope_W(R: float, psi: float, dr: float, s: float) -> float:
+    rho = R + dr
+    return s * (1.0 - rho * math.cos(psi) / R) + rho * math.sin(psi) / R
+
+
+@numba.njit(cache=True, inline="always")
+def _slope_V(R: float, psi: float, dr: float, r1: float) -> float:
+    rho = R + dr
+    sp = math.sin(psi)
+    cp = math.cos(psi)
+    dpsi = -(1.0 + r1 * sp / R) / (r1 * sp + rho * cp)
+    return r1 * (dpsi + 1.0 / R) * cp - rho * sp * dpsi
+
+
+@numba.njit(cache=True)
+def _stationary(
+    P: NDArray[np.float64],
+    k: int,
+    sh: float,
+    R: float,
+    x: float,
+    phi: float,
+    lo: float,
+    hi: float,
+    xj: float,
+    yj: float,
+    s: float,
+) -> tuple[float, float, float, float]:
+    """(G, ψ, x_D, r') at the root of G' in (lo, hi) (G'(lo) > 0 > G'(hi)): safeguarded Newton."""
+    if int(P[k, _KIND]) == PIECE_ARC:
+        psi = math.atan(s)
+        g, _, _, xd, _, r1 = _g_line(P, k, sh, R, x, phi, psi, xj, yj, s)
+        return g, psi, xd, r1
+    a, b = lo, hi
+    psi = 0.5 * (lo + hi)
+    g, gp, gpp, xd, _, r1 = _g_line(P, k, sh, R, x, phi, psi, xj, yj, s)
+    for _ in range(60):
+        if gp > 0.0:
+            a = psi
+        else:
+            b = psi
+        nxt = psi - gp / gpp if gpp < 0.0 else 0.5 * (a + b)
+        if not (a < nxt < b):
+            nxt = 0.5 * (a + b)
+        done = abs(nxt - psi) <= 1e-16 * (1.0 + abs(psi)) or b - a <= 4e-16
+        psi = nxt
+        g, gp, gpp, xd, _, r1 = _g_line(P, k, sh, R, x, phi, psi, xj, yj, s)
+        if done or gp == 0.0:
+            break
+    return g, psi, xd, r1
+
+
+@numba.njit(cache=True)
+def _cell(
+    P: NDArray[np.float64],
+    n: int,
+    R: float,
+    vx: NDArray[np.float64],
+    vy: NDArray[np.float64],
+    sl: NDArray[np.float64],
+    g: int,
+    j: int,
+    x: float,
+    phi: float,
+    clip: float,
+) -> tuple[float, int, int, int, float, float]:
+    """max of G over cell (piece g, segment j) at x: (value, type, g, r, slope, x_D); type -1 if empty."""
+    k, sh = _shift(g, n)
+    a = max(P[k, _T0] + sh - phi, -clip)
+    b = min(P[k, _T1] + sh - phi, clip)
+    if not a < b:
+        return -np.inf, -1, 0, 0, 0.0, 0.0
+    xj = vx[j]
+    xj1 = vx[j + 1]
+    yj = vy[j]
+    s = sl[j]
+    dra, _, _ = _rho(P, k, R, a + phi - sh)
+    drb, _, _ = _rho(P, k, R, b + phi - sh)
+    xa = x + (R + dra) * math.sin(a)
+    xb = x + (R + drb) * math.sin(b)
+    if xb < xj or xa > xj1:
+        return -np.inf, -1, 0, 0, 0.0, 0.0
+    # lo end
+    if xa >= xj:
+        plo = a
+        tlo, glo, rlo = FT_W, g - 1, j
+    else:
+        plo = _psi_at(P, k, sh, R, x, phi, xj)
+        tlo, glo, rlo = FT_V, g, j
+    if xb <= xj1:
+        phi_ = b
+        thi, ghi, rhi = FT_W, g, j
+    else:
+        phi_ = _psi_at(P, k, sh, R, x, phi, xj1)
+        thi, ghi, rhi = FT_V, g, j + 1
+    G0, gp0, _, xd0, dr0, r10 = _g_line(P, k, sh, R, x, phi, plo, xj, yj, s)
+    G1, gp1, _, xd1, dr1, r11 = _g_line(P, k, sh, R, x, phi, phi_, xj, yj, s)
+    if tlo == FT_V:
+        h = math.sin(0.5 * plo)
+        G0 = vy[j] + dr0 * math.cos(plo) - 2.0 * R * h * h
+    if thi == FT_V:
+        h = math.sin(0.5 * phi_)
+        G1 = vy[j + 1] + dr1 * math.cos(phi_) - 2.0 * R * h * h
+    convex = P[k, _CONC] == 0.0 and int(P[k, _KIND]) != PIECE_CHORD
+    if convex and gp0 > 0.0 and gp1 < 0.0 and plo < phi_:
+        G, psi, xd, r1 = _stationary(P, k, sh, R, x, phi, plo, phi_, xj, yj, s)
+        if G >= G0 and G >= G1:
+            return G, FT_T, g, j, _slope_T(R, psi, r1, s), xd
+    if G0 >= G1:
+        if tlo == FT_V:
+            return G0, tlo, glo, rlo, _slope_V(R, plo, dr0, r10), xd0
+        return G0, tlo, glo, rlo, _slope_W(R, plo, dr0, s), xd0
+    if thi == FT_V:
+        return G1, thi, ghi, rhi, _slope_V(R, phi_, dr1, r11), xd1
+    return G1, thi, ghi, rhi, _slope_W(R, phi_, dr1, s), xd1
+
+
+@numba.njit(cache=True)
+def _global(
+    P: NDArray[np.float64],
+    n: int,
+    R: float,
+    vx: NDArray[np.float64],
+    vy: NDArray[np.float64],
+    sl: NDArray[np.float64],
+    ymax: float,
+    drg: float,
+    phase: float,
+    x: float,
+    hint: int,
+) -> tuple[float, int, int, int, float, float, int]:
+    """(y_C^k, type, g, r, slope, x_D, piece at ψ = 0) at x: every cell that can win."""
+    phi = phase + x / R
+    g0 = _piece_of(P, n, phi, hint)
+    j0 = _seg_of(vx, x)
+    best, bt, bg, br, bs, bx = _cell(P, n, R, vx, vy, sl, g0, j0, x, phi, CLIP)
+    # the window of ψ that can win
+    d = ymax + drg - best
+    psw = math.sqrt(2.0 * max(d, 0.0) / R) * 1.01 + 1e-12
+    if psw > CLIP:
+        psw = CLIP
+    ga = _piece_of(P, n, phi - psw, g0)
+    gb = _piece_of(P, n, phi + psw, g0)
+    rw = R + drg
+    for g in range(ga, gb + 1):
+        k, sh = _shift(g, n)
+        a = max(P[k, _T0] + sh - phi, -psw)
+        b = min(P[k, _T1] + sh - phi, psw)
+        if not a < b:
+            continue
+        dra, _, _ = _rho(P, k, R, a + phi - sh)
+        drb, _, _ = _rho(P, k, R, b + phi - sh)
+        xa = x + (R + dra) * math.sin(a)
+        xb = x + (R + drb) * math.sin(b)
+        top = max(P[k, _DRMAX], 0.0)
+        ja = _seg_of(vx, xa)
+        jb = _seg_of(vx, xb)
+        for j in range(ja, jb + 1):
+            if g == g0 and j == j0:
+                continue
+            # distance from x to the segment bounds |ψ| from below
+            if vx[j + 1] < x:
+                u = x - vx[j + 1]
+            elif vx[j] > x:
+                u = vx[j] - x
+            else:
+                u = 0.0
+            bound = max(vy[j], vy[j + 1]) + top - _drop_lb(u / rw, R)
+            if bound < best:
+                continue
+            v, t, gg, r, s, xd = _cell(P, n, R, vx, vy, sl, g, j, x, phi, psw)
+            if v > best:
+                best, bt, bg, br, bs, bx = v, t, gg, r, s, xd
+    return best, bt, bg, br, bs, bx, g0
+
+
+@numba.njit(cache=True)
+def _cells_of(t: int, g: int, r: int, out: NDArray[np.int64], m: int) -> int:
+    """Append the cells (g, j) of feature (t, g, r) to ``out`` from row m; returns the new count."""
+    if t == FT_T:
+        out[m, 0] = g
+        out[m, 1] = r
+        return m + 1
+    if t == FT_W:
+        out[m, 0] = g
+        out[m, 1] = r
+        out[m + 1, 0] = g + 1
+        out[m + 1, 1] = r
+        return m + 2
+    out[m, 0] = g
+    out[m, 1] = r - 1
+    out[m + 1, 0] = g
+    out[m + 1, 1] = r
+    return m + 2
+
+
+@numba.njit(cache=True)
+def _restricted(
+    P: NDArray[np.float64],
+    n: int,
+    R: float,
+    vx: NDArray[np.float64],
+    vy: NDArray[np.float64],
+    sl: NDArray[np.float64],
+    phase: float,
+    cells: NDArray[np.int64],
+    nc: int,
+    x: float,
+) -> tuple[float, int, int, int, float, float]:
+    """The best feature among the listed cells at x."""
+    phi = phase + x / R
+    best = -np.inf
+    bt = bg = br = -1
+    bs = bx = 0.0
+    last = vx.size - 2
+    for c in range(nc):
+        j = cells[c, 1]
+        if j < 0 or j > last:
+            continue
+        v, t, gg, r, s, xd = _cell(P, n, R, vx, vy, sl, cells[c, 0], j, x, phi, CLIP)
+        if t >= 0 and v > best:
+            best, bt, bg, br, bs, bx = v, t, gg, r, s, xd
+    return best, bt, bg, br, bs, bx
+
+
+@numba.njit(cache=True)
+def _feature_eval(
+    P: NDArray[np.float64],
+    n: int,
+    R: float,
+    vx: NDArray[np.float64],
+    vy: NDArray[np.float64],
+    sl: NDArray[np.float64],
+    phase: float,
+    t: int,
+    g: int,
+    r: int,
+    x: float,
+) -> tuple[float, float, float]:
+    """(value, slope, x_D) of feature (t, g, r) at x by its own formula (continued past its cell)."""
+    phi = phase + x / R
+    if t == FT_W:
+        k, sh = _shift(g, n)
+        psi = P[k, _T1] + sh - phi
+        G, _, _, xd, dr, _ = _g_line(P, k, sh, R, x, phi, psi, vx[r], vy[r], sl[r])
+        return G, _slope_W(R, psi, dr, sl[r]), xd
+    k, sh = _shift(g, n)
+    if t == FT_V:
+        psi = _psi_at(P, k, sh, R, x, phi, vx[r])
+        dr, r1, _ = _rho(P, k, R, psi + phi - sh)
+        h = math.sin(0.5 * psi)
+        G = vy[r] + dr * math.cos(psi) - 2.0 * R * h * h
+        return G, _slope_V(R, psi, dr, r1), x + (R + dr) * math.sin(psi)
+    lo = max(P[k, _T0] + sh - phi, -CLIP)
+    hi = min(P[k, _T1] + sh - phi, CLIP)
+    G, psi, xd, r1 = _stationary(P, k, sh, R, x, phi, lo, hi, vx[r], vy[r], sl[r])
+    return G, _slope_T(R, psi, r1, sl[r]), xd
+
+
+@numba.njit(cache=True)
+def _grow2(a: NDArray[np.float64], n: int) -> NDArray[np.float64]:
+    if n < a.shape[0]:
+        return a
+    b = np.empty((2 * a.shape[0] + 64, a.shape[1]))
+    b[: a.shape[0]] = a
+    return b
+
+
+@numba.njit(cache=True)
+def _grow2i(a: NDArray[np.int64], n: int) -> NDArray[np.int64]:
+    if n < a.shape[0]:
+        return a
+    b = np.empty((2 * a.shape[0] + 64, a.shape[1]), np.int64)
+    b[: a.shape[0]] = a
+    return b
+
+
+@numba.njit(cache=True, nogil=True)
+def sweep_kernel(
+    P: NDArray[np.float64],
+    R: float,
+    vx: NDArray[np.float64],
+    vy: NDArray[np.float64],
+    sl: NDArray[np.float64],
+    phase: float,
+    x0: float,
+    x1: float,
+    nint: int,
+    hermite_tol: float,
+) -> NDArray[np.float64]:
+    """Nodes (columns of sim_core.constraint: x, y, slope left/right, x_D, …, kink flag) over [x0, x1]."""
+    n = P.shape[0]
+    ymax = vy.max()
+    drg = max(P[:, _DRMAX].max(), 0.0)
+    nodes = np.zeros((2 * nint + 64, _NCOL))
+    feats = np.empty((2 * nint + 64, 7), np.int64)  # left (t, g, r), right (t, g, r), hint
+    nn = 0
+    h0 = (x1 - x0) / nint
+    phi0 = phase + x0 / R
+    hint = _piece_of(P, n, phi0, int(math.floor((phi0 - P[0, _T0]) / TWO_PI)) * n)
+    for i in range(nint + 1):
+        xv = x0 + i * h0 if i < nint else x1
+        v, t, g, r, s, xd, g0 = _global(P, n, R, vx, vy, sl, ymax, drg, phase, xv, hint)
+        hint = g0
+        nodes[nn, _X] = xv
+        nodes[nn, _V] = v
+        nodes[nn, _SL] = s
+        nodes[nn, _SR] = s
+        nodes[nn, _XD] = xd
+        feats[nn, 0] = t
+        feats[nn, 1] = g
+        feats[nn, 2] = r
+        feats[nn, 3] = t
+        feats[nn, 4] = g
+        feats[nn, 5] = r
+        feats[nn, 6] = g0
+        nn += 1
+    stack = np.empty((nn + 64, 2), np.int64)
+    ns = 0
+    for i in range(nn - 2, -1, -1):
+        stack[ns, 0] = i
+        stack[ns, 1] = i + 1
+        ns += 1
+    cells = np.empty((8, 2), np.int64)
+    guard = 0
+    while ns > 0 and guard < 20_000_000:
+        guard += 1
+        ns -= 1
+        ia = stack[ns, 0]
+        ib = stack[ns, 1]
+        xa = nodes[ia, _X]
+        xb = nodes[ib, _X]
+        hlen = xb - xa
+        scale = max(1.0, abs(xa))
+        if hlen <= 4e-13 * scale:
+            continue
+        tA, gA, rA = feats[ia, 3], feats[ia, 4], feats[ia, 5]
+        tB, gB, rB = feats[ib, 0], feats[ib, 1], feats[ib, 2]
+        hint = feats[ia, 6]
+        same = tA == tB and gA == gB and rA == rB
+        xn = math.nan
+        split = False  # True: a plain node (one feature) at xn from a global solve
+        if not same:
+            nc = _cells_of(tA, gA, rA, cells, 0)
+            nc = _cells_of(tB, gB, rB, cells, nc)
+            lo, hi = xa, xb
+            third = False
+            while hi - lo > 1e-13 * scale:
+                m = 0.5 * (lo + hi)
+                if m <= lo or m >= hi:
+                    break
+                _, t, g, r, _, _ = _restricted(P, n, R, vx, vy, sl, phase, cells, nc, m)
+                if t == tA and g == gA and r == rA:
+                    lo = m
+                elif t == tB and g == gB and r == rB:
+                    hi = m
+                else:
+                    third = True
+                    xn = m
+                    break
+            if not third:
+                xs = 0.5 * (lo + hi)
+                va, sa, _ = _feature_eval(P, n, R, vx, vy, sl, phase, tA, gA, rA, xs)
+                vb, sb, xdb = _feature_eval(P, n, R, vx, vy, sl, phase, tB, gB, rB, xs)
+                vg, tg, gg, rg, _, _, _ = _global(
+                    P, n, R, vx, vy, sl, ymax, drg, phase, xs, hint
+                )
+                top = max(va, vb)
+                isab = (tg == tA and gg == gA and rg == rA) or (tg == tB and gg == gB and rg == rB)
+                if vg > top + 1e-15 and not isab:
+                    xn = xs
+                    third = True
+                elif xa < xs < xb:
+                    nodes = _grow2(nodes, nn + 1)
+                    feats = _grow2i(feats, nn + 1)
+                    nodes[nn] = 0.0
+                    nodes[nn, _X] = xs
+                    nodes[nn, _V] = max(top, vg)
+                    nodes[nn, _SL] = sa
+                    nodes[nn, _SR] = sb
+                    nodes[nn, _XD] = xdb
+                    nodes[nn, _K] = 1.0
+                    feats[nn, 0] = tA
+                    feats[nn, 1] = gA
+                    feats[nn, 2] = rA
+                    feats[nn, 3] = tB
+                    feats[nn, 4] = gB
+                    feats[nn, 5] = rB
+                    feats[nn, 6] = hint
+                    ic = nn
+                    nn += 1
+                    stack = _grow2i(stack, ns + 2)
+                    stack[ns, 0] = ic
+                    stack[ns, 1] = ib
+                    stack[ns + 1, 0] = ia
+                    stack[ns + 1, 1] = ic
+                    ns += 2
+                    continue
+                else:
+                    # the change sits on an end node: that node takes both sides' features
+                    if xs - xa <= xb - xs:
+                        nodes[ia, _SR] = sb
+                        nodes[ia, _XD] = xdb
+                        nodes[ia, _K] = 1.0
+                        feats[ia, 3] = tB
+                        feats[ia, 4] = gB
+                        feats[ia, 5] = rB
+                    else:
+                        nodes[ib, _SL] = sa
+                        nodes[ib, _K] = 1.0
+                        feats[ib, 0] = tA
+                        feats[ib, 1] = gA
+                        feats[ib, 2] = rA
+                    stack = _grow2i(stack, ns + 1)
+                    stack[ns, 0] = ia
+                    stack[ns, 1] = ib
+                    ns += 1
+                    continue
+            split = True
+        else:
+            xn = 0.5 * (xa + xb)
+            if hlen <= 1.6e-12 * scale:
+                continue
+        vg, tg, gg, rg, sg, xdg, g0 = _global(P, n, R, vx, vy, sl, ymax, drg, phase, xn, hint)
+        if not split:
+            hm = 0.5 * (nodes[ia, _V] + nodes[ib, _V]) + 0.125 * hlen * (
+                nodes[ia, _SR] - nodes[ib, _SL]
+            )
+            if tg == tA and gg == gA and rg == rA and abs(vg - hm) <= hermite_tol:
+                continue
+        if not (xa < xn < xb):
+            continue
+        nodes = _grow2(nodes, nn + 1)
+        feats = _grow2i(feats, nn + 1)
+        nodes[nn] = 0.0
+        nodes[nn, _X] = xn
+        nodes[nn, _V] = vg
+        nodes[nn, _SL] = sg
+        nodes[nn, _SR] = sg
+        nodes[nn, _XD] = xdg
+        feats[nn, 0] = tg
+        feats[nn, 1] = gg
+        feats[nn, 2] = rg
+        feats[nn, 3] = tg
+        feats[nn, 4] = gg
+        feats[nn, 5] = rg
+        feats[nn, 6] = g0
+        ic = nn
+        nn += 1
+        stack = _grow2i(stack, ns + 2)
+        stack[ns, 0] = ic
+        stack[ns, 1] = ib
+        stack[ns + 1, 0] = ia
+        stack[ns + 1, 1] = ic
+        ns += 2
+    out = nodes[:nn]
+    order = np.argsort(out[:, _X], kind="mergesort")
+    return out[order]
