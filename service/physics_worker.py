@@ -227,16 +227,14 @@ class ProcessPhysics:
             try:
                 conn.send(msg)
                 if not conn.poll(self.budget):
-                    self._kill()
+                    self._kill()  # a new worker is started for the next call
                     self.restarts += 1
-                    self._spawn()
                     raise BudgetExceededError(what, self.budget)
                 reply: tuple[Any, ...] = conn.recv()
             except (EOFError, OSError, BrokenPipeError) as exc:
                 code = self._proc.exitcode if self._proc is not None else None
                 self._kill()
                 self.restarts += 1
-                self._spawn()
                 raise WorkerCrashedError(f"{what}: the physics worker died (exit code {code}); "
                                     "it was restarted") from exc
         kind = reply[0]

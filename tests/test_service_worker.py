@@ -1,0 +1,175 @@
+"""Never deaf (issue 8, item 2): the physics runs in a worker process.
+
+- A plastic site's rail survives a worker killed for overrunning its budget.
+- During a long passage the service answers health queries at once, aborts the
+  passage at its wall-time budget with ``simulation_failed`` naming the budget,
+  serves the next passage, and stops on SIGTERM within the budget.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import statistics
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+import zenoh
+
+from schemas.messages import Health, PassageResult, ServiceError, WheelPassage
+from schemas.scenario import FlatOutline
+from schemas.site import SiteConfig
+from service.feeder import declare_passage_publisher, wait_matching
+from service.keyspace import SiteKeys
+from service.physics_worker import BudgetExceededError, ProcessPhysics
+from service.service_process import ServiceProcess
+from service.zenoh_session import build_config, free_tcp_endpoint
+
+PLASTIC = SiteConfig.model_validate({
+    "site_id": "plastic", "length": 3.0, "output_sample_rate": 5000.0,
+    "contact": "hertz_plastic", "rtol": 1e-8,
+    "rail": {"kind": "cosine", "amplitude": 2e-6, "wavelength": 0.06},
+    "material": {"youngs_modulus": 2.14e11, "poisson_ratio": 0.3, "yield_stress": 6e8},
+})
+WHEEL = WheelPassage(passage_id="w0", train_id="t1", axle_index=0, side="right",
+                     timestamp=1.7e9, speed=44.4, load=60e3, mass=500.0, radius=0.46)
+BUDGET = 2.0
+SLOW_SITE = """
+site_id = "slow"
+length = 60.0
+output_sample_rate = 1000.0
+contact = "hertz"
+[rail]
+kind = "cosine"
+amplitude = 2.0e-6
+wavelength = 0.06
+[material]
+youngs_modulus = 2.14e11
+poisson_ratio = 0.3
+"""
+
+
+def test_plastic_rail_survives_a_worker_killed_for_its_budget() -> None:
+    flat = WHEEL.model_copy(update={"passage_id": "flat",
+                                    "outline": FlatOutline(kind="flat", length=0.05),
+                                    "phase": (-0.8 / WHEEL.radius) % math.tau})
+    physics = ProcessPhysics(PLASTIC, budget=60.0)
+    physics.start()
+    try:
+        dented = physics.simulate(flat)
+        assert dented.summary.max_dent > 0.0
+        state = physics.rail_state()
+        assert state.revision == 1 and state.passages_done == 1
+        first_pid = physics.pid
+        physics.budget = 1e-4
+        with pytest.raises(BudgetExceededError, match=r"budget of 0\.0001 s"):
+            physics.simulate(WHEEL)
+        physics.budget = 60.0
+        assert physics.rail_state().revision == 1  # answered while the worker is down
+        again = physics.simulate(WHEEL.model_copy(update={"passage_id": "w1"}))
+        assert physics.pid != first_pid and physics.restarts == 1
+        assert again.rail_revision == 1  # the new worker rolls on the dented rail
+        assert physics.rail_state().max_dent >= state.max_dent
+    finally:
+        physics.close()
+
+
+def slow_wheel(pid: str) -> dict[str, Any]:
+    """A wheel with a 4 096-point measured outline: ~3 s over the 60 m site (tabulation)."""
+    n = 4096
+    theta = [2 * math.pi * i / n for i in range(n)]
+    radius = [0.46 + 1e-5 * math.sin(5 * t) for t in theta]
+    return {**json.loads(WHEEL.model_dump_json()), "passage_id": pid,
+            "outline": {"kind": "sampled", "theta": theta, "radius": radius}}
+
+
+class Prober:
+    """Queries the site's health every 20 ms, keeping each answer's latency."""
+
+    def __init__(self, session: zenoh.Session, key: str) -> None:
+        self.session, self.key = session, key
+        self.latencies: list[float] = []
+        self.missed = 0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def __enter__(self) -> Prober:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join()
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            start = time.monotonic()
+            ok = [r for r in self.session.get(self.key, timeout=2.0) if r.ok is not None]
+            if ok:
+                Health.model_validate_json(ok[0].ok.payload.to_bytes())  # type: ignore[union-attr]
+                self.latencies.append(time.monotonic() - start)
+            else:
+                self.missed += 1
+            time.sleep(0.02)
+
+
+def test_never_deaf_budget_and_sigterm(tmp_path: Path) -> None:
+    site = tmp_path / "slow.toml"
+    site.write_text(SLOW_SITE)
+    keys = SiteKeys("slow")
+    endpoint = free_tcp_endpoint()
+    results: dict[str, PassageResult] = {}
+    errors: list[ServiceError] = []
+
+    def on_output(sample: zenoh.Sample) -> None:
+        kind = keys.kind_of(str(sample.key_expr))
+        if kind == "result":
+            r = PassageResult.model_validate_json(sample.payload.to_bytes())
+            results[r.passage_id] = r
+        elif kind == "error":
+            errors.append(ServiceError.model_validate_json(sample.payload.to_bytes()))
+
+    def wait(cond: Any, timeout: float = 60.0) -> bool:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline and not cond():
+            time.sleep(0.01)
+        return bool(cond())
+
+    svc = ServiceProcess(site, listen=endpoint, recordings=tmp_path / "rec",
+                         extra_args=("--passage-budget", str(BUDGET), "--no-rerun"))
+    with svc, zenoh.open(build_config(connect=[endpoint])) as session:
+        sub = session.declare_subscriber(keys.all_outputs, on_output)
+        pub = declare_passage_publisher(session, keys)
+        assert wait_matching(pub, 20.0)
+        with Prober(session, keys.health) as prober:
+            time.sleep(0.2)
+            sent = time.monotonic()
+            pub.put(json.dumps(slow_wheel("runaway")))
+            pub.put(WHEEL.model_dump_json())
+            assert wait(lambda: "w0" in results), svc.output
+            took = time.monotonic() - sent
+        (err,) = errors
+        assert (err.kind, err.passage_id) == ("simulation_failed", "runaway")
+        assert f"budget of {BUDGET:g} s" in err.message
+        assert took >= BUDGET
+        during = prober.latencies
+        print(f"\nhealth during a {took:.1f} s runaway passage: {len(during)} answers, "
+              f"median {statistics.median(during) * 1e3:.1f} ms, "
+              f"max {max(during) * 1e3:.1f} ms, {prober.missed} missed")
+        assert prober.missed == 0
+        assert len(during) >= 20
+        assert statistics.median(during) < 0.1 and max(during) < 0.5
+        # SIGTERM during a long passage: the service stops within the budget
+        pub.put(json.dumps(slow_wheel("interrupted")))
+        time.sleep(0.5)
+        sub.undeclare()
+        pub.undeclare()
+        start = time.monotonic()
+        svc.stop()
+        stopped = time.monotonic() - start
+    print(f"SIGTERM during a passage: stopped in {stopped:.1f} s (budget {BUDGET:g} s)")
+    assert svc.returncode == 0, svc.output
+    assert stopped < BUDGET + 5.0, svc.output
