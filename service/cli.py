@@ -1,6 +1,7 @@
 """The ``railtwin`` command line.
 
     railtwin simulate SCENARIO.json --out RESULT.json   # one case in, one result out
+    railtwin simulate A.json B.json ... --out-dir DIR   # batch: DIR/A.json, DIR/B.json, ...
     railtwin schema [NAME]                              # JSON Schemas of the contract
     railtwin figures --out DIR                          # the paper's figures
 
@@ -70,26 +71,49 @@ class _Parser(argparse.ArgumentParser):
 
 # --- simulate -------------------------------------------------------------------------------
 
+BATCH_EXIT_CODES_HELP = """\
+batch mode (several scenarios, --out-dir DIR):
+  Every file is attempted in order, in one process (the compiled physics is
+  loaded once, before the first scenario, so each result's stats.wall_time is
+  that scenario's own time). A file that fails gets one line on stderr and is
+  skipped; the others are still written. The exit status comes at the end:
+  2 if any file was unreadable or invalid, else 1 if any simulation or write
+  failed, else 0.
+"""
+
 
 def register_simulate(subparsers: Any) -> None:
     p = subparsers.add_parser(
         "simulate",
-        help="run one scenario file and write its result",
+        help="run scenario files and write their results",
         description=(
             "Validate SCENARIO (CONTRACT.md), simulate every pass and write the "
             "result JSON. Prints a summary table on stdout (or JSON with --format "
             "json); progress of multi-pass runs goes to stderr. Invalid scenarios are "
-            "reported on stderr with the offending field's path, and exit 2."
+            "reported on stderr with the offending field's path, and exit 2. "
+            "With several scenarios (batch mode) give --out-dir DIR: the result of "
+            "A.json is written to DIR/A.json, progress goes to stderr."
         ),
-        epilog=EXIT_CODES_HELP,
+        epilog=EXIT_CODES_HELP + "\n" + BATCH_EXIT_CODES_HELP,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("scenario", metavar="SCENARIO.json", help="scenario file ('-' for stdin)")
     p.add_argument(
+        "scenario",
+        metavar="SCENARIO.json",
+        nargs="+",
+        help="scenario file ('-' for stdin; several need --out-dir)",
+    )
+    out = p.add_mutually_exclusive_group()
+    out.add_argument(
         "-o",
         "--out",
         metavar="RESULT.json",
         help="write the result here ('-' for stdout, which replaces the summary)",
+    )
+    out.add_argument(
+        "--out-dir",
+        metavar="DIR",
+        help="batch mode: write each result to DIR/<scenario file name> (.json)",
     )
     p.add_argument(
         "--format",
@@ -102,26 +126,56 @@ def register_simulate(subparsers: Any) -> None:
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
+    if args.out_dir is not None:
+        return _simulate_batch(args)
+    if len(args.scenario) > 1:
+        raise CommandError(
+            f"{len(args.scenario)} scenarios need --out-dir DIR (one result file each)",
+            EXIT_USAGE,
+        )
+    path = args.scenario[0]
+    source = "<stdin>" if path == "-" else path
+    scenario = _load_scenario(path, source)
+    result = _run(scenario, source, args)
+    text = result.model_dump_json()
+    if args.out == "-":
+        sys.stdout.write(text + "\n")
+        return EXIT_OK
+    if args.out:
+        _write_atomic(Path(args.out), text)
+    if not args.quiet:
+        if args.format == "json":
+            sys.stdout.write(json.dumps(summary_document(result, args.out)) + "\n")
+        else:
+            sys.stdout.write(summary_table(result, source, args.out))
+    return EXIT_OK
+
+
+def _load_scenario(path: str, source: str) -> Any:
+    """The validated ``Scenario`` of ``path``; CommandError (exit 2) if unreadable or invalid."""
     from pydantic import ValidationError
 
     from schemas.errors import ErrorReport
     from schemas.scenario import Scenario
 
-    source = "<stdin>" if args.scenario == "-" else args.scenario
-    data = _read_json(args.scenario, source)
+    data = _read_json(path, source)
     try:
-        scenario = Scenario.model_validate(data)
+        return Scenario.model_validate(data)
     except ValidationError as exc:
         report = ErrorReport.from_validation_error(exc, data, source)
         raise CommandError(f"invalid scenario {report.to_text()}", EXIT_USAGE, report) from None
 
+
+def _run(scenario: Any, source: str, args: argparse.Namespace) -> Any:
+    """``run_scenario`` with pass progress on stderr; CommandError (exit 1) if it fails."""
+    from schemas.errors import ErrorReport
     from service.scenario_runner import run_scenario
 
     progress = None
     if scenario.passes > 1 and not args.quiet:
         progress = _ProgressPrinter(sys.stderr)
     try:
-        result = run_scenario(scenario, progress=progress)
+        return run_scenario(scenario, progress=progress)
     except KeyboardInterrupt:
         raise
     except Exception as exc:
@@ -137,18 +191,105 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         if progress is not None:
             progress.close()
 
-    text = result.model_dump_json()
-    if args.out == "-":
-        sys.stdout.write(text + "\n")
-        return EXIT_OK
-    if args.out:
-        _write_atomic(Path(args.out), text)
+
+def batch_outputs(paths: Sequence[str], out_dir: Path) -> list[Path]:
+    """DIR/<file name, with the suffix .json> for each scenario path.
+
+    Raises CommandError (exit 2) for stdin, for two inputs that would write the
+    same file, and for an output that would overwrite its own input.
+    """
+    outs: list[Path] = []
+    seen: dict[Path, str] = {}
+    for path in paths:
+        if path == "-":
+            raise CommandError(
+                "batch mode (--out-dir) needs scenario files: '-' (stdin) has no name", EXIT_USAGE
+            )
+        out = out_dir / Path(path).with_suffix(".json").name
+        if out in seen:
+            raise CommandError(
+                f"{seen[out]} and {path} would both be written to {out}", EXIT_USAGE
+            )
+        seen[out] = path
+        try:
+            same = out.exists() and out.samefile(path)
+        except OSError:
+            same = False
+        if same:
+            raise CommandError(
+                f"{out} would overwrite its own scenario {path}: choose another --out-dir",
+                EXIT_USAGE,
+            )
+        outs.append(out)
+    return outs
+
+
+def _simulate_batch(args: argparse.Namespace) -> int:
+    """``simulate A.json B.json ... --out-dir DIR``: one process, one result file each."""
+    import time
+
+    paths: list[str] = list(args.scenario)
+    outs = batch_outputs(paths, Path(args.out_dir))
+    n = len(paths)
+    failures: list[int] = []
+    warmed = False
+    for i, (path, out) in enumerate(zip(paths, outs, strict=True), start=1):
+        tag = f"[{i}/{n}] {path}"
+        try:
+            scenario = _load_scenario(path, path)
+            if not warmed:
+                warmed = True
+                from service.scenario_runner import warm_up
+
+                seconds = warm_up()
+                _note(args, f"compiled physics loaded in {seconds:.2f} s")
+            started = time.perf_counter()
+            result = _run(scenario, path, args)
+            _write_atomic(out, result.model_dump_json())
+            elapsed = time.perf_counter() - started
+        except CommandError as exc:
+            failures.append(exc.code)
+            _report_one_line(exc, args, f"[{i}/{n}]", path)
+            continue
+        wall = result.stats.wall_time if result.stats is not None else None
+        _note(
+            args,
+            f"{tag} -> {out}"
+            + (f": simulated in {wall:.3f} s" if wall is not None else "")
+            + f", {elapsed:.3f} s with writing",
+        )
+        if not args.quiet:
+            if args.format == "json":
+                doc = summary_document(result, str(out))
+                doc["source"] = path
+                sys.stdout.write(json.dumps(doc) + "\n")
+            else:
+                sys.stdout.write(summary_table(result, path, str(out)) + "\n")
+            sys.stdout.flush()
+    done = n - len(failures)
+    _note(args, f"{done} of {n} scenario{'s' if n != 1 else ''} written to {args.out_dir}")
+    if EXIT_USAGE in failures:
+        return EXIT_USAGE
+    return EXIT_FAILURE if failures else EXIT_OK
+
+
+def _note(args: argparse.Namespace, line: str) -> None:
+    """A progress line of batch mode on stderr (silenced by --quiet)."""
     if not args.quiet:
-        if args.format == "json":
-            sys.stdout.write(json.dumps(summary_document(result, args.out)) + "\n")
-        else:
-            sys.stdout.write(summary_table(result, source, args.out))
-    return EXIT_OK
+        sys.stderr.write(f"{PROG} {args.command}: {line}\n")
+        sys.stderr.flush()
+
+
+def _report_one_line(exc: CommandError, args: argparse.Namespace, tag: str, source: str) -> None:
+    """A failed scenario of a batch: one line on stderr (an ErrorReport line with --format json)."""
+    if getattr(args, "format", "table") == "json" and exc.report is not None:
+        sys.stderr.write(exc.report.model_dump_json() + "\n")
+        return
+    text = "; ".join(part.strip() for part in str(exc).splitlines() if part.strip())
+    if source not in text:
+        text = f"{source}: {text}"
+    sys.stderr.write(f"{PROG} {args.command}: {tag} {text}\n")
+    sys.stderr.flush()
 
 
 def _read_json(path: str, source: str) -> Any:

@@ -298,6 +298,165 @@ def test_simulate_contract_example_via_subprocess(cli: Run, tmp_path: Path) -> N
     assert result.derived.contact_frequency == pytest.approx(270.6, abs=0.05)
 
 
+# --- simulate: batch mode (several scenarios, --out-dir) -------------------------------------
+
+
+def test_batch_help_documents_out_dir_and_exit_status(capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run_main(["simulate", "--help"], capsys)
+    assert code == 0
+    assert "--out-dir DIR" in out and "batch mode" in out
+    assert "2 if any file was unreadable or invalid" in out
+
+
+@pytest.mark.parametrize(
+    ("argv", "fragment"),
+    [
+        (["a.json", "b.json"], "2 scenarios need --out-dir DIR"),
+        (["a.json", "--out", "r.json", "--out-dir", "d"], "not allowed with argument"),
+        (["a.json", "-", "--out-dir", "d"], "'-' (stdin) has no name"),
+        (["x/a.json", "y/a.json", "--out-dir", "d"], "would both be written to"),
+    ],
+)
+def test_batch_usage_errors_exit_2(
+    argv: list[str], fragment: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, _, err = run_main(["simulate", *argv], capsys)
+    assert code == 2 and fragment in err
+
+
+def test_batch_refuses_to_overwrite_its_input(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = write(tmp_path, "s.json", EXAMPLE_JSON)
+    code, _, err = run_main(["simulate", str(path), "--out-dir", str(tmp_path)], capsys)
+    assert code == 2 and "would overwrite its own scenario" in err
+    assert path.read_text() == EXAMPLE_JSON
+
+
+@pytest.fixture
+def batch_files(tmp_path: Path) -> list[Path]:
+    """Two good scenarios (a slow one first, then a fast one), a bad one, a missing one."""
+    slow = json.loads(EXAMPLE_JSON)
+    slow["duration"] = 0.05
+    fast = json.loads(EXAMPLE_JSON)
+    fast["duration"] = 0.01
+    bad = json.loads(EXAMPLE_JSON)
+    bad["speed"] = -1.0
+    return [
+        write(tmp_path, "slow.json", slow),
+        write(tmp_path, "bad.json", bad),
+        tmp_path / "missing.json",
+        write(tmp_path, "fast.scenario", fast),
+    ]
+
+
+def test_batch_plumbing_own_wall_times_and_exit_2(
+    fake_multipass: list[dict[str, Any]],
+    batch_files: list[Path],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    import time
+
+    events: list[str] = []
+    fake = sys.modules["sim_core.multipass"]
+    plain = fake.simulate_passes
+
+    def simulate_passes(wheel: Any, rail: Any, spec: Any, **kw: Any) -> Any:
+        events.append(f"run {spec.duration:g}")
+        time.sleep(0.3 if spec.duration == 0.05 else 0.0)  # the slow scenario takes 0.3 s
+        return plain(wheel, rail, spec, **kw)
+
+    monkeypatch.setattr(fake, "simulate_passes", simulate_passes)
+    def warm_up() -> float:
+        events.append("warm-up")
+        return 0.0
+
+    monkeypatch.setattr("service.scenario_runner.warm_up", warm_up)
+    out_dir = tmp_path / "results"
+    code, stdout, err = run_main(
+        ["simulate", *map(str, batch_files), "--out-dir", str(out_dir)], capsys
+    )
+    # the bad and the missing file: one line each, exit 2 at the end; the others written
+    assert code == 2
+    assert sorted(p.name for p in out_dir.iterdir()) == ["fast.json", "slow.json"]
+    assert events == ["warm-up", "run 0.05", "run 0.01"]  # compiled once, before the first
+    lines = err.splitlines()
+    (bad_line,) = [ln for ln in lines if "bad.json" in ln]
+    assert bad_line.startswith("railtwin simulate: [2/4] invalid scenario") and "speed" in bad_line
+    (missing_line,) = [ln for ln in lines if "missing.json" in ln]
+    assert "[3/4] cannot read" in missing_line
+    assert any("[1/4]" in ln and "slow.json" in ln for ln in lines)  # progress on stderr
+    assert "2 of 4 scenarios written" in err
+    # each result is its own scenario with its own wall time (not the time since start)
+    slow = Result.model_validate_json((out_dir / "slow.json").read_text())
+    fast = Result.model_validate_json((out_dir / "fast.json").read_text())
+    assert slow.scenario.duration == 0.05 and fast.scenario.duration == 0.01
+    assert slow.stats is not None and fast.stats is not None
+    assert slow.stats.wall_time is not None and fast.stats.wall_time is not None
+    assert slow.stats.wall_time >= 0.3 and fast.stats.wall_time < 0.2
+    assert stdout.count("peak F") == 2 and f"result written to {out_dir / 'fast.json'}" in stdout
+
+
+def test_batch_runtime_failure_exits_1_others_written(
+    fake_multipass: list[dict[str, Any]],
+    tmp_path: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    fake = sys.modules["sim_core.multipass"]
+    plain = fake.simulate_passes
+
+    def simulate_passes(wheel: Any, rail: Any, spec: Any, **kw: Any) -> Any:
+        if spec.duration == 0.01:
+            raise RuntimeError("integrator diverged")
+        return plain(wheel, rail, spec, **kw)
+
+    monkeypatch.setattr(fake, "simulate_passes", simulate_passes)
+    monkeypatch.setattr("service.scenario_runner.warm_up", lambda: 0.0)
+    a = json.loads(EXAMPLE_JSON)
+    b = dict(a, duration=0.01)
+    paths = [str(write(tmp_path, "a.json", a)), str(write(tmp_path, "b.json", b))]
+    out_dir = tmp_path / "out"
+    code, stdout, err = run_main(
+        ["simulate", *paths, "--out-dir", str(out_dir), "--format", "json"], capsys
+    )
+    assert code == 1
+    assert [p.name for p in out_dir.iterdir()] == ["a.json"]
+    (report,) = [json.loads(ln) for ln in err.splitlines() if ln.startswith("{")]
+    assert report["error"] == "runtime_error" and report["source"] == paths[1]
+    (doc,) = [json.loads(ln) for ln in stdout.splitlines()]  # one JSON line per result
+    assert doc["source"] == paths[0] and doc["out"] == str(out_dir / "a.json")
+    # --quiet: nothing on stdout, only the failure on stderr
+    code, stdout, err = run_main(["simulate", *paths, "--out-dir", str(out_dir), "-q"], capsys)
+    assert code == 1 and stdout == ""
+    assert err.strip().splitlines() == [
+        f"railtwin simulate: [2/2] {paths[1]}: simulation failed: RuntimeError: integrator diverged"
+    ]
+
+
+def test_batch_real_physics_via_subprocess(cli: Run, tmp_path: Path) -> None:
+    """One process simulates several examples; each file equals its single-mode result."""
+    names = ["ideal_flat.json", "sampled_rail.json", "step_rail.json"]
+    out_dir = tmp_path / "batch"
+    proc = cli("simulate", *(str(EXAMPLES / n) for n in names), "--out-dir", str(out_dir))
+    assert proc.returncode == 0, proc.stderr
+    assert "compiled physics loaded" in proc.stderr and "3 of 3 scenarios written" in proc.stderr
+    single = tmp_path / "single.json"
+    proc = cli("simulate", str(EXAMPLES / "step_rail.json"), "--out", str(single), "-q")
+    assert proc.returncode == 0, proc.stderr
+    for n in names:
+        result = Result.model_validate_json((out_dir / n).read_text())
+        assert result.scenario == Scenario.model_validate_json((EXAMPLES / n).read_text())
+        assert result.stats is not None and result.stats.wall_time is not None
+        assert result.stats.wall_time < 1.0  # its own time, without the compilation
+    batch_step = Result.model_validate_json((out_dir / "step_rail.json").read_text())
+    single_step = Result.model_validate_json(single.read_text())
+    assert batch_step.series == single_step.series
+    assert batch_step.summary == single_step.summary
+
+
 # --- schema and figures ---------------------------------------------------------------------
 
 
