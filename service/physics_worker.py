@@ -21,8 +21,12 @@ from __future__ import annotations
 
 import contextlib
 import multiprocessing
+import queue
 import signal
 import threading
+import time
+from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -116,9 +120,15 @@ def _child_main(site: SiteConfig, kind: str, conn: Connection, snapshot: Any) ->
         op = msg[0]
         try:
             if op == "warm_up":
+                start = time.perf_counter()
                 warm_up = getattr(physics, "warm_up", None)
-                seconds = warm_up() if warm_up is not None and msg[1] else 0.0
-                conn.send(("ok", seconds, physics.rail_state()))
+                if warm_up is not None and msg[1]:
+                    warm_up()
+                if kind == "sim_core" and msg[1]:  # ready before the first measurement
+                    from service.diagnosis import Diagnoser
+
+                    diagnoser = Diagnoser(site, physics=physics)
+                conn.send(("ok", time.perf_counter() - start, physics.rail_state()))
             elif op == "simulate":
                 result = physics.simulate(msg[1])
                 data = result.model_dump_json().encode()
@@ -268,6 +278,10 @@ class ProcessPhysics:
                                            ("diagnose", passage, measured))[1]
         return out
 
+    @property
+    def passages_done(self) -> int:
+        return self._done
+
     def rail_state(self) -> RailState:
         state = self._state
         if state is None:
@@ -288,3 +302,91 @@ class ProcessPhysics:
                 self._lock.release()
         self._kill()
 
+
+
+class PhysicsPool:
+    """``workers`` worker processes; passages are submitted and their futures kept in order.
+
+    With an elastic contact law the passages are independent and several workers simulate in
+    parallel; a plastic site (``hertz_plastic``: each wheel rolls on the dents of the ones
+    before) must have one. Even with one worker the twin publishes a result while the next
+    passage is simulated.
+    """
+
+    def __init__(self, site: SiteConfig, kind: str = "sim_core", *, workers: int = 1,
+                 budget: float = 30.0, warm_up: bool = True) -> None:
+        if workers < 1:
+            raise ValueError(f"workers must be >= 1, got {workers}")
+        if workers > 1 and site.contact == "hertz_plastic":
+            raise ValueError("a hertz_plastic site needs one worker: every passage rolls on the "
+                             "dents of the ones before")
+        self.site = site
+        self.kind = kind
+        self.workers = [ProcessPhysics(site, kind, budget=budget, warm_up=warm_up)
+                        for _ in range(workers)]
+        self._idle: queue.SimpleQueue[ProcessPhysics] = queue.SimpleQueue()
+        for w in self.workers:
+            self._idle.put(w)
+        self._executor = ThreadPoolExecutor(max_workers=workers,
+                                            thread_name_prefix="railtwin-physics")
+
+    @property
+    def size(self) -> int:
+        return len(self.workers)
+
+    @property
+    def diagnoses(self) -> bool:
+        return self.kind == "sim_core"
+
+    @property
+    def pids(self) -> list[int | None]:
+        return [w.pid for w in self.workers]
+
+    @property
+    def restarts(self) -> int:
+        return sum(w.restarts for w in self.workers)
+
+    def start(self) -> float:
+        """Start every worker (in parallel); returns the longest warm-up, s."""
+        return max(f.result() for f in [self._executor.submit(w.start) for w in self.workers])
+
+    def _with_worker(self, call: Callable[[ProcessPhysics], Any]) -> Any:
+        worker = self._idle.get()
+        try:
+            return call(worker)
+        finally:
+            self._idle.put(worker)
+
+    def submit(self, passage: WheelPassage) -> Future[tuple[PassageResult, bytes, RailState]]:
+        """Simulate ``passage`` on the next free worker; the future holds the result, its JSON
+        and the rail right after it (a plastic site's dents as this passage left them)."""
+
+        def run(w: ProcessPhysics) -> tuple[PassageResult, bytes, RailState]:
+            result, data = w.simulate_json(passage)
+            return result, data, w.rail_state()
+
+        return self._executor.submit(self._with_worker, run)
+
+    def simulate_json(self, passage: WheelPassage) -> tuple[PassageResult, bytes]:
+        result, data, _ = self.submit(passage).result()
+        return result, data
+
+    def simulate(self, passage: WheelPassage) -> PassageResult:
+        return self.simulate_json(passage)[0]
+
+    def diagnose(self, passage: WheelPassage, measured: MeasuredPassage) -> DiagnosisOutcome:
+        out: DiagnosisOutcome = self._executor.submit(
+            self._with_worker, lambda w: w.diagnose(passage, measured)).result()
+        return out
+
+    def rail_state(self) -> RailState:
+        state = self.workers[0].rail_state()
+        if len(self.workers) == 1:
+            return state
+        return state.model_copy(update={"passages_done": sum(w.passages_done
+                                                             for w in self.workers)})
+
+    def close(self, timeout: float = 5.0) -> None:
+        self._executor.shutdown(wait=False, cancel_futures=True)
+        for w in self.workers:
+            w.close(timeout)

@@ -24,7 +24,7 @@ import zenoh
 from service.limits import DEFAULT_PASSAGE_BUDGET, site_problem
 from service.mcap_log import DEFAULT_MAX_BYTES, DEFAULT_MAX_SECONDS
 from service.physics import PassageSimulator
-from service.physics_worker import ProcessPhysics
+from service.physics_worker import PhysicsPool
 from service.recorder_process import ProcessRecorder, RecordingPlan
 from service.site import SiteFileError, load_site
 from service.twin import Twin
@@ -61,6 +61,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--passage-budget", type=float, default=DEFAULT_PASSAGE_BUDGET, metavar="S",
                    help="wall-time budget of one passage or diagnosis in the physics worker; "
                         f"past it the worker is restarted (default {DEFAULT_PASSAGE_BUDGET:g} s)")
+    p.add_argument("--workers", type=int, default=1, metavar="N",
+                   help="physics worker processes (default 1); passages of an elastic site "
+                        "(hertz, johnson) are simulated N at a time and published in order; a "
+                        "hertz_plastic site always has one")
     p.add_argument("--physics", choices=("sim_core", "stub"), default="sim_core",
                    help=argparse.SUPPRESS)
     p.add_argument("--in-process", action="store_true", help=argparse.SUPPRESS)
@@ -112,7 +116,15 @@ def run(args: argparse.Namespace) -> int:
     listen = args.listen or ([] if (args.zenoh_config or args.connect) else [DEFAULT_ENDPOINT])
     cfg = build_config(listen=listen, connect=args.connect, config_file=args.zenoh_config,
                        multicast_scouting=args.multicast_scouting)
-    worker: ProcessPhysics | None = None
+    if args.workers < 1:
+        print("railtwin serve: --workers must be >= 1", file=sys.stderr)
+        return 2
+    workers = args.workers
+    if workers > 1 and site.contact == "hertz_plastic":
+        print(f"railtwin serve: one physics worker, not {workers}: on a hertz_plastic site "
+              "every wheel rolls on the dents of the ones before", flush=True)
+        workers = 1
+    worker: PhysicsPool | None = None
     physics: PassageSimulator
     if args.in_process:
         physics = make_physics(args.physics, site)
@@ -120,11 +132,13 @@ def run(args: argparse.Namespace) -> int:
         if warm_up is not None:
             print(f"railtwin serve: physics warmed up in {warm_up():.1f} s", flush=True)
     else:  # the compiled physics holds the GIL: it runs in a worker process
-        worker = ProcessPhysics(site, args.physics, budget=args.passage_budget)
+        worker = PhysicsPool(site, args.physics, workers=workers, budget=args.passage_budget)
         seconds = worker.start()
         physics = worker
-        print(f"railtwin serve: physics warmed up in {seconds:.1f} s (worker process "
-              f"{worker.pid}, budget {args.passage_budget:g} s a passage)", flush=True)
+        pids = ", ".join(str(p) for p in worker.pids)
+        print(f"railtwin serve: physics warmed up in {seconds:.1f} s (worker process"
+              f"{'es' if workers > 1 else ''} {pids}, budget {args.passage_budget:g} s a "
+              "passage)", flush=True)
     try:
         return _serve(args, site, cfg, listen, physics)
     finally:

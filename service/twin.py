@@ -197,6 +197,7 @@ class Twin:
         self.passages_received = 0
         self.passages_done = 0
         self.errors = 0
+        self._counts = threading.Lock()
         self.last_error: ServiceError | None = None
         self.measured_received = 0
         self.diagnoses_done = 0
@@ -213,6 +214,13 @@ class Twin:
         self._waiting: OrderedDict[str, _Waiting] = OrderedDict()
         self._diagnosed: OrderedDict[str, None] = OrderedDict()
         self._worker = threading.Thread(target=self._work, name="railtwin-worker", daemon=True)
+        # a PhysicsPool: passages are submitted as they are validated, published in order
+        self._pool: Any = physics if hasattr(physics, "submit") else None
+        pool_size = int(getattr(physics, "size", 1))
+        self._inflight = threading.Semaphore(2 * pool_size)
+        self._ordered: queue.Queue[Any] = queue.Queue()
+        self._publisher = threading.Thread(target=self._publish_in_order,
+                                           name="railtwin-publisher", daemon=True)
         self._due: list[_Due] = []
         self._due_seq = 0
         self._due_cv = threading.Condition()
@@ -227,6 +235,8 @@ class Twin:
         if self.recorder is not None:
             self.recorder.rail(self.physics.rail_state())
         self._worker.start()
+        if self._pool is not None:
+            self._publisher.start()
         if self.pace == "realtime":
             self._pacer = threading.Thread(target=self._pace, name="railtwin-pacer", daemon=True)
             self._pacer.start()
@@ -247,6 +257,9 @@ class Twin:
         self._declared = []
         self._queue.put(_STOP)
         self._worker.join()
+        if self._pool is not None:
+            self._ordered.put(_STOP)
+            self._publisher.join()
         if self._pacer is not None:
             with self._due_cv:
                 self._pacer_stop = True
@@ -397,13 +410,46 @@ class Twin:
                 self._diagnose(passage, waiting.measured, waiting.item)
 
     def _simulate(self, item: Inbound, passage: WheelPassage) -> None:
-        simulate_json = getattr(self.physics, "simulate_json", None)
-        result_data: bytes | None = None
-        try:
+        if self._pool is not None:  # published in order by the publisher thread
+            self._inflight.acquire()
+            self._ordered.put((item, passage, self._pool.submit(passage)))
+            return
+
+        def run() -> tuple[PassageResult, bytes | None, RailState | None]:
+            simulate_json = getattr(self.physics, "simulate_json", None)
             if simulate_json is not None:
-                result, result_data = simulate_json(passage)
-            else:
-                result = self.physics.simulate(passage)
+                result, data = simulate_json(passage)
+                return result, data, None
+            return self.physics.simulate(passage), None, None
+
+        self._finish(item, passage, run)
+
+    def _publish_in_order(self) -> None:
+        """The publisher thread (with a ``PhysicsPool``): results in the passages' order."""
+        while True:
+            entry = self._ordered.get()
+            try:
+                if entry is _STOP:
+                    return
+                item, passage, future = entry
+                try:
+                    self._finish(item, passage, future.result)
+                except Exception as exc:  # never let one passage kill the service
+                    self._publish_error(ServiceError(
+                        site_id=self.site.site_id, kind="simulation_failed",
+                        message=f"internal error: {type(exc).__name__}: {exc}", field=None,
+                        passage_id=passage.passage_id, received_at=item.received_ns / 1e9,
+                    ))
+                finally:
+                    self._inflight.release()
+            finally:
+                self._ordered.task_done()
+
+    def _finish(self, item: Inbound, passage: WheelPassage,
+                run: Callable[[], tuple[PassageResult, bytes | None, RailState | None]]) -> None:
+        """Wait for the passage's simulation (``run``) and publish its result or error."""
+        try:
+            result, result_data, rail_after = run()
         except (BudgetExceededError, WorkerCrashedError) as exc:
             self._publish_error(ServiceError(
                 site_id=self.site.site_id, kind="simulation_failed", message=str(exc),
@@ -423,7 +469,7 @@ class Twin:
         if self.recorder is not None:
             self.recorder.passage(result, result_data)
             if result.summary.max_dent > 0.0:
-                self.recorder.dent(result.passage_id, self.physics.rail_state())
+                self.recorder.dent(result.passage_id, rail_after or self.physics.rail_state())
 
     # --- diagnosis ---------------------------------------------------------------------
 
@@ -492,6 +538,8 @@ class Twin:
     def _diagnose(self, passage: WheelPassage, measured: MeasuredPassage, item: Inbound) -> None:
         assert self.diagnoser is not None
         pid = passage.passage_id
+        if self._pool is not None:
+            self._ordered.join()  # the passage's result goes out first
         try:
             outcome = self.diagnoser(passage, measured)
         except MeasurementRefusedError as exc:
@@ -537,8 +585,9 @@ class Twin:
         )
 
     def _publish_error(self, error: ServiceError) -> None:
-        self.errors += 1
-        self.last_error = error
+        with self._counts:  # the callbacks, the worker and the publisher all report errors
+            self.errors += 1
+            self.last_error = error
         self._put(self.keys.error, self.keys.error, ServiceError, error.model_dump_json().encode())
 
     def _put(self, key: str, topic: str, model: type[BaseModel], data: bytes) -> None:
