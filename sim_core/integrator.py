@@ -47,7 +47,7 @@ from numpy.typing import NDArray
 
 from sim_core import dop853
 from sim_core.constraint_table import locate, table_eval, table_value, wrap
-from sim_core.contact_laws import HERTZ, JOHNSON, mode_force
+from sim_core.contact_laws import HERTZ, JOHNSON, contact_force, mode_force
 
 # Modes.
 FLIGHT = 0
@@ -158,6 +158,18 @@ def _force(delta: float, mode: int, par: NDArray[np.float64], scale: float) -> f
         par[P_FY],
         par[P_DY],
         par[P_THETA],
+    )
+
+
+@numba.njit(cache=True, inline="always")
+def _loading_force(delta: float, par: NDArray[np.float64], scale: float) -> float:
+    """F(δ) on the loading branch of the law (MODEL.md §3), Hertz part scaled by ``scale``.
+
+    The peak and least force are reported on it: the elastic branch continues a
+    hair (the yield hysteresis) above δ_Y before the switch is located.
+    """
+    return contact_force(
+        delta, int(par[P_LAW]), par[P_C] * scale, par[P_FY], par[P_DY], par[P_THETA]
     )
 
 
@@ -786,7 +798,7 @@ def integrate(
     j0c, j0m, hint = _jerks(t, y, am, mode, par, tx, ty, tsl, tsr, period, hint, False)
     peak_delta = delta0
     min_delta = delta0 if mode != FLIGHT else 0.0
-    peak_f = _force(delta0, mode, par, sc0)
+    peak_f = _loading_force(delta0, par, sc0) if mode != FLIGHT else 0.0
     min_f = peak_f
     t_flight = 0.0
     nsteps = 0
@@ -1055,14 +1067,14 @@ def integrate(
                 peak_delta = max(peak_delta, d_m)
                 min_delta = min(min_delta, d_m)
                 if not scaled or mode != ELASTIC:
-                    f_m = _force(d_m, mode, par, 1.0)
+                    f_m = _loading_force(d_m, par, 1.0)
                     peak_f = max(peak_f, f_m)
                     min_f = min(min_f, f_m)
             if not scaled or mode != ELASTIC:
                 # F rises with δ in every mode and σ only scales the elastic branch: the
                 # extrema of F are those of δ
-                f_a = _force(d_a, mode, par, 1.0)
-                f_b = _force(d_b, mode, par, 1.0)
+                f_a = _loading_force(d_a, par, 1.0)
+                f_b = _loading_force(d_b, par, 1.0)
                 peak_f = max(peak_f, f_a, f_b)
                 min_f = min(min_f, f_a, f_b)
             else:
