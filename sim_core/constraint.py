@@ -64,12 +64,14 @@ a cosine rail a = 0.1 mm, λ = 5 cm reaches exactly ±a, and its fundamental is
 from __future__ import annotations
 
 import math
+import weakref
 
 import numba
 import numpy as np
 from numpy.typing import NDArray
 
 from sim_core.constraint_polyline import (
+    RailPolyline,
     flat_zones,
     polyline_pieces,
     rail_polyline,
@@ -1316,6 +1318,63 @@ def _tabulate_wheel_pieces(
     return _table_from_nodes(nodes, periodic, resolution, step)
 
 
+_ROUND_CACHE: dict[
+    tuple[int, float, float], tuple[weakref.ref[RailProfile], float, float, NDArray[np.float64]]
+] = {}
+
+
+def _round_nodes(
+    rail: RailProfile, poly: RailPolyline, R: float, step: float, x0: float, x1: float
+) -> NDArray[np.float64]:
+    """The round wheel's table (radius R) on the whole sampled rail, made once per rail and R.
+
+    Wheel-independent: every out-of-round wheel of radius R on this rail takes its nodes
+    outside its flat zones from here (cut exactly at the zone ends by :func:`_poly_points`).
+    """
+    key = (id(rail), float(R), float(step))
+    hit = _ROUND_CACHE.get(key)
+    if hit is not None and hit[0]() is rail and hit[1] <= x0 and hit[2] >= x1:
+        return hit[3]
+    lo = min(x0, float(rail.x[0]) - 0.05)
+    hi = max(x1, float(rail.x[-1]) + 0.05)
+    nodes = _tabulate_poly(lo, hi, max(math.ceil((hi - lo) / step), 2), R, poly.vx, poly.vy, 16)
+    for k in [k for k, v in _ROUND_CACHE.items() if v[0]() is None]:
+        del _ROUND_CACHE[k]
+    while len(_ROUND_CACHE) >= 16:
+        del _ROUND_CACHE[next(iter(_ROUND_CACHE))]
+    _ROUND_CACHE[key] = (weakref.ref(rail), lo, hi, nodes)
+    return nodes
+
+
+@numba.njit(cache=True)
+def _poly_points(
+    xs: NDArray[np.float64], R: float, vx: NDArray[np.float64], vy: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Exact nodes of the round wheel on the polyline at the positions ``xs``."""
+    B = 16
+    n = vx.size
+    nb = (n + B - 1) // B + 1
+    bmax = np.full(nb, -np.inf)
+    for k in range(n):
+        b = k // B
+        bmax[b] = max(bmax[b], vy[k])
+        if k % B == 0 and b > 0:
+            bmax[b - 1] = max(bmax[b - 1], vy[k])
+        if k % B == B - 1 and b + 1 < nb:
+            bmax[b + 1] = max(bmax[b + 1], vy[k])
+    gmax = vy.max()
+    out = np.zeros((xs.size, _NCOL))
+    for i in range(xs.size):
+        v, p = _poly_solve(xs[i], R, vx, vy, bmax, B, gmax)
+        _, sl, xd = _piece(p, xs[i], R, vx, vy)
+        out[i, _X] = xs[i]
+        out[i, _V] = v
+        out[i, _SL] = sl
+        out[i, _SR] = sl
+        out[i, _XD] = xd
+    return out
+
+
 def _tabulate_polyline(
     wheel: WheelOutline,
     rail: RailProfile,
@@ -1341,16 +1400,27 @@ def _tabulate_polyline(
     def nint(lo: float, hi: float) -> int:
         return max(math.ceil((hi - lo) / step), 2)
 
+    zones = flat_zones(wheel, poly, phase, x0, x1)
+    gaps = []
     cur = x0
-    for za, zb in flat_zones(wheel, poly, phase, x0, x1):
+    for za, zb in zones:
         if za > cur:
-            parts.append(_tabulate_poly(cur, za, nint(cur, za), R, poly.vx, poly.vy, 16))
+            gaps.append((cur, za))
         parts.append(
             sweep_kernel(P, R, poly.vx, poly.vy, poly.slope, phase, za, zb, nint(za, zb), HERMITE_TOL)
         )
         cur = zb
     if cur < x1:
-        parts.append(_tabulate_poly(cur, x1, nint(cur, x1), R, poly.vx, poly.vy, 16))
+        gaps.append((cur, x1))
+    if gaps:
+        rn = _round_nodes(rail, poly, R, step, x0, x1)
+        cuts = np.array([c for gap in gaps for c in gap])
+        ends = _poly_points(cuts, R, poly.vx, poly.vy)
+        for i, (c, d) in enumerate(gaps):
+            lo_i, hi_i = np.searchsorted(rn[:, _X], [c, d], side="right")
+            parts.append(ends[2 * i : 2 * i + 1])
+            parts.append(rn[lo_i:hi_i][rn[lo_i:hi_i, _X] < d])
+            parts.append(ends[2 * i + 1 : 2 * i + 2])
     nodes = np.concatenate(parts)
     nodes = nodes[np.argsort(nodes[:, _X], kind="mergesort")]
     return _table_from_nodes(nodes, 0.0, resolution, step)

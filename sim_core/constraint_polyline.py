@@ -51,7 +51,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from sim_core.constraint_wheel_pieces import PIECE_ARC, PIECE_CHORD, wheel_pieces
+from sim_core.constraint_wheel_pieces import PIECE_ARC, PIECE_CHORD, PIECE_HAVERSINE, wheel_pieces
 from sim_core.constraint_wheel_pieces import _drop as _drop_lb
 from sim_core.constraint_wheel_pieces import _piece_of, _rho, _shift
 from sim_core.rail import RailProfile
@@ -128,7 +128,26 @@ def polyline_pieces(wheel: WheelOutline) -> NDArray[np.float64]:
             rows[-1][_T1] = row[_T1]
         else:
             rows.append(row.copy())
-    return np.array(rows)
+    # a rounded flat's haversine in sub-pieces of at most 1/16 of the flat, each with its
+    # own largest r - R (at its end farther from the centre): the bound of the global solve
+    # then skips most of the flat when it faces the rail
+    out: list[NDArray[np.float64]] = []
+    R = wheel.nominal_radius
+    width = 2.0 * wheel.flat_half_angle / 16.0
+    for row in rows:
+        if row[_KIND] != PIECE_HAVERSINE:
+            out.append(row)
+            continue
+        m = max(math.ceil((row[_T1] - row[_T0]) / width - 1e-9), 1)
+        edges = np.linspace(row[_T0], row[_T1], m + 1)
+        for a, c in zip(edges[:-1], edges[1:], strict=True):
+            sub = row.copy()
+            sub[_T0], sub[_T1] = a, c
+            far = max(abs(a - row[_CEN]), abs(c - row[_CEN]))
+            w = TWO_PI * R / row[_C1]
+            sub[_DRMAX] = -0.5 * row[_C0] * (1.0 + math.cos(w * far))
+            out.append(sub)
+    return np.array(out)
 
 
 def flat_zones(
@@ -179,8 +198,14 @@ def _psi_at(
     """ψ of piece k (turn shift sh) with x + ρ sin ψ = xv."""
     u = (xv - x) / R
     psi = math.asin(min(max(u, -1.0), 1.0))
-    if int(P[k, _KIND]) == PIECE_ARC:
+    kind = int(P[k, _KIND])
+    if kind == PIECE_ARC:
         return psi
+    if kind == PIECE_CHORD:
+        # the chord is the line ρ cos(ψ + c) = R - d: tan ψ = u cos c / (R - d + u sin c)
+        c = phi - sh - P[k, _CEN]
+        du = xv - x
+        return math.atan2(du * math.cos(c), R - P[k, _C0] + du * math.sin(c))
     for _ in range(12):
         dr, r1, _ = _rho(P, k, R, psi + phi - sh)
         rho = R + dr
@@ -344,6 +369,69 @@ def _cell(
 
 
 @numba.njit(cache=True)
+def _chord_max(
+    P: NDArray[np.float64],
+    n: int,
+    R: float,
+    vx: NDArray[np.float64],
+    vy: NDArray[np.float64],
+    sl: NDArray[np.float64],
+    g: int,
+    x: float,
+    phi: float,
+    a: float,
+    b: float,
+    psw: float,
+) -> tuple[float, int, int, int, float, float]:
+    """max of G over an ideal flat's chord (ψ in [a, b]) at x, the same features as :func:`_cell`.
+
+    The chord is straight: over a rail vertex at offset u its depth is linear in u, so G at
+    the rail vertices under it is y_i + dr(c) + u·tan c (c the chord's tilt), a loop of a
+    multiply-add per vertex; its ends (wheel vertices) are evaluated on their segments.
+    """
+    k, sh = _shift(g, n)
+    c = phi - sh - P[k, _CEN]
+    dr0, _, _ = _rho(P, k, R, c + P[k, _CEN])
+    tc = math.tan(c)
+    dra, _, _ = _rho(P, k, R, a + phi - sh)
+    drb, _, _ = _rho(P, k, R, b + phi - sh)
+    xa = x + (R + dra) * math.sin(a)
+    xb = x + (R + drb) * math.sin(b)
+    ia = int(np.searchsorted(vx, xa, side="right"))
+    ib = int(np.searchsorted(vx, xb, side="left")) - 1
+    best = -np.inf
+    bi = -1
+    for i in range(ia, ib + 1):
+        v = vy[i] + (vx[i] - x) * tc
+        if v > best:
+            best, bi = v, i
+    bt, bg, br = -1, 0, 0
+    bs = bx = 0.0
+    if bi >= 0:
+        best += dr0
+        psi = _psi_at(P, k, sh, R, x, phi, vx[bi])
+        dr, r1, _ = _rho(P, k, R, psi + phi - sh)
+        h = math.sin(0.5 * psi)
+        best = vy[bi] + dr * math.cos(psi) - 2.0 * R * h * h
+        bt, bg, br = FT_V, g, bi
+        bs = _slope_V(R, psi, dr, r1)
+        bx = x + (R + dr) * math.sin(psi)
+    # the chord's ends (not where the window clipped it)
+    for end in range(2):
+        pe = a if end == 0 else b
+        if abs(pe) >= psw:
+            continue
+        xe = xa if end == 0 else xb
+        j = _seg_of(vx, xe)
+        G, _, _, xd, dr, _ = _g_line(P, k, sh, R, x, phi, pe, vx[j], vy[j], sl[j])
+        if G > best:
+            best, bt, bg, br = G, FT_W, (g - 1 if end == 0 else g), j
+            bs = _slope_W(R, pe, dr, sl[j])
+            bx = xd
+    return best, bt, bg, br, bs, bx
+
+
+@numba.njit(cache=True)
 def _global(
     P: NDArray[np.float64],
     n: int,
@@ -370,17 +458,29 @@ def _global(
     ga = _piece_of(P, n, phi - psw, g0)
     gb = _piece_of(P, n, phi + psw, g0)
     rw = R + drg
-    for g in range(ga, gb + 1):
+    for step in range(2 * max(g0 - ga, gb - g0) + 1):
+        # pieces from the centre outward: the best so far rises early and prunes more
+        g = g0 + (step + 1) // 2 if step % 2 == 1 else g0 - step // 2
+        if g < ga or g > gb:
+            continue
         k, sh = _shift(g, n)
         a = max(P[k, _T0] + sh - phi, -psw)
         b = min(P[k, _T1] + sh - phi, psw)
         if not a < b:
             continue
+        pmin = 0.0 if a <= 0.0 <= b else min(abs(a), abs(b))
+        top = max(P[k, _DRMAX], 0.0)
+        if ymax + top - _drop_lb(pmin, R) < best:
+            continue
+        if int(P[k, _KIND]) == PIECE_CHORD:
+            v, t, gg, r, s, xd = _chord_max(P, n, R, vx, vy, sl, g, x, phi, a, b, psw)
+            if v > best:
+                best, bt, bg, br, bs, bx = v, t, gg, r, s, xd
+            continue
         dra, _, _ = _rho(P, k, R, a + phi - sh)
         drb, _, _ = _rho(P, k, R, b + phi - sh)
         xa = x + (R + dra) * math.sin(a)
         xb = x + (R + drb) * math.sin(b)
-        top = max(P[k, _DRMAX], 0.0)
         ja = _seg_of(vx, xa)
         jb = _seg_of(vx, xb)
         for j in range(ja, jb + 1):
@@ -393,7 +493,7 @@ def _global(
                 u = vx[j] - x
             else:
                 u = 0.0
-            bound = max(vy[j], vy[j + 1]) + top - _drop_lb(u / rw, R)
+            bound = max(vy[j], vy[j + 1]) + top - _drop_lb(max(u / rw, pmin), R)
             if bound < best:
                 continue
             v, t, gg, r, s, xd = _cell(P, n, R, vx, vy, sl, g, j, x, phi, psw)
@@ -486,6 +586,20 @@ def _feature_eval(
 
 
 @numba.njit(cache=True)
+def _handover(tA: int, gA: int, rA: int, tB: int, gB: int, rB: int) -> bool:
+    """True if one feature is a piece's tangent and the other an end of its cell (a C¹ change)."""
+    if tA != FT_T:
+        if tB != FT_T:
+            return False
+        tA, gA, rA, tB, gB, rB = tB, gB, rB, tA, gA, rA
+    if tB == FT_V:
+        return gB == gA and (rB == rA or rB == rA + 1)
+    if tB == FT_W:
+        return rB == rA and (gB == gA or gB == gA - 1)
+    return False
+
+
+@numba.njit(cache=True)
 def _grow2(a: NDArray[np.float64], n: int) -> NDArray[np.float64]:
     if n < a.shape[0]:
         return a
@@ -568,12 +682,43 @@ def sweep_kernel(
         same = tA == tB and gA == gB and rA == rB
         xn = math.nan
         split = False  # True: a plain node (one feature) at xn from a global solve
+        da = db = 0.0
+        if not same:
+            da = (
+                _feature_eval(P, n, R, vx, vy, sl, phase, tA, gA, rA, xa)[0]
+                - _feature_eval(P, n, R, vx, vy, sl, phase, tB, gB, rB, xa)[0]
+            )
+            db = (
+                _feature_eval(P, n, R, vx, vy, sl, phase, tA, gA, rA, xb)[0]
+                - _feature_eval(P, n, R, vx, vy, sl, phase, tB, gB, rB, xb)[0]
+            )
+            # two features within the tolerance of each other over the whole interval (a wheel
+            # corner creeping over a rail vertex): where one hands over is immaterial
+            same = abs(da) <= hermite_tol and abs(db) <= hermite_tol
         if not same:
             nc = _cells_of(tA, gA, rA, cells, 0)
             nc = _cells_of(tB, gB, rB, cells, nc)
             lo, hi = xa, xb
             third = False
-            while hi - lo > 1e-13 * scale:
+            direct = not _handover(tA, gA, rA, tB, gB, rB)
+            if direct:
+                # a kink: bisect on the sign of the difference of the two features' own values
+                direct = da >= -1e-15 and db <= 1e-15
+            while direct and hi - lo > 1e-13 * scale:
+                m = 0.5 * (lo + hi)
+                if m <= lo or m >= hi:
+                    break
+                dm = (
+                    _feature_eval(P, n, R, vx, vy, sl, phase, tA, gA, rA, m)[0]
+                    - _feature_eval(P, n, R, vx, vy, sl, phase, tB, gB, rB, m)[0]
+                )
+                if dm > 0.0:
+                    lo = m
+                elif dm < 0.0:
+                    hi = m
+                else:
+                    lo = hi = m
+            while not direct and hi - lo > 1e-13 * scale:
                 m = 0.5 * (lo + hi)
                 if m <= lo or m >= hi:
                     break
@@ -595,7 +740,7 @@ def sweep_kernel(
                 )
                 top = max(va, vb)
                 isab = (tg == tA and gg == gA and rg == rA) or (tg == tB and gg == gB and rg == rB)
-                if vg > top + 1e-15 and not isab:
+                if (vg > top + 1e-15 and not isab) or top > vg + 1e-15:
                     xn = xs
                     third = True
                 elif xa < xs < xb:
@@ -654,8 +799,13 @@ def sweep_kernel(
             hm = 0.5 * (nodes[ia, _V] + nodes[ib, _V]) + 0.125 * hlen * (
                 nodes[ia, _SR] - nodes[ib, _SL]
             )
-            if tg == tA and gg == gA and rg == rA and abs(vg - hm) <= hermite_tol:
-                continue
+            if abs(vg - hm) <= hermite_tol:
+                if tg == tA and gg == gA and rg == rA:
+                    continue
+                # another feature at the midpoint: a split unless it only ties with A
+                fa = _feature_eval(P, n, R, vx, vy, sl, phase, tA, gA, rA, xn)[0]
+                if vg <= fa + hermite_tol:
+                    continue
         if not (xa < xn < xb):
             continue
         nodes = _grow2(nodes, nn + 1)
