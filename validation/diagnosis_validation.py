@@ -84,6 +84,7 @@ def run_case(i: int, rng: np.random.Generator, tread_kind: str, tread: Tread | N
         "true_peak": m.true_peak_force, "fit_rms": diag.fit_rms, "wall_time": diag.wall_time,
         "fit_time": curves.estimate.wall_time,
         "significance": curves.estimate.significance,
+        "contrast": curves.estimate.contrast,
         "best_length": curves.estimate.best_length,
     }
 

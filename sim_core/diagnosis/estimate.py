@@ -23,9 +23,12 @@ the lower cost. The length interval is where the cost stays within the 95 % band
 A flat is reported only if it explains the windows significantly better than a round
 wheel, (J_round - J_flat)/(J_flat/N_eff) >= ``detection``, and is at least the detection
 floor long: 8 mm below 75 km/h, 16 mm above (where a few µm of unknown rail roughness
-excite as much dynamic force as a 10-15 mm flat; measured on the tuning set).
+excite as much dynamic force as a 10-15 mm flat; measured on the tuning set), unless it
+stands out of its own record: its *contrast*, the significance over the largest
+significance of the same flat fitted a fraction of a turn away (``NULL_OFFSETS``), is at
+least ``contrast`` (round wheels of the tuning set reached 7.7).
 
-Worked example (tests/test_diagnosis_estimate.py runs it on noisy synthetic records):
+Worked example (tests/test_diagnosis.py runs it on noisy synthetic records):
 a 50 mm fresh flat at 100 km/h is found as a ``flat`` of 50 ± 2 mm.
 """
 
@@ -35,6 +38,7 @@ import math
 import time
 from dataclasses import dataclass, field, replace
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -67,8 +71,11 @@ WINDOW_AFTER = 2.5e-3
 PRE_ROLL = 4e-3
 """s of steady rolling simulated before the flat's leading end in a template."""
 
-POST_ROLL = 0.03
+POST_ROLL = 0.02
 """s simulated after the flat's trailing end in a template."""
+
+TEMPLATE_RTOL = 1e-6
+"""Integrator tolerance of the templates: forces to ~1e-5, far below what a fit resolves."""
 
 SHIFT_STEP = 5e-5
 """s: the coarse step of the per-turn time alignment (refined tenfold around the best)."""
@@ -84,10 +91,14 @@ class FitOptions:
     min_length: float = 0.008
     min_length_fast: float = 0.016
     fast_speed: float = 75.0 / 3.6
+    contrast: float = 20.0
+    min_length_contrast: float = 0.005
     detection: float = 40.0
     speed_uncertainty: float = 0.01
-    damping_ratios: tuple[float, ...] = (0.0, 0.12, 0.3, 0.5)
-    dof_per_window: float = 4.0
+    speed_uncertainty_fit: float = 0.015
+    damping_ratios: tuple[float, ...] = (0.0, 0.15, 0.35, 0.6)
+    refine_rounds: int = 2
+    dof_per_window: float = 1.5
 
 
 DEFAULT_OPTIONS = FitOptions()
@@ -123,6 +134,7 @@ class FlatEstimate:
     cost_best: float
     n_samples: int
     significance: float
+    contrast: float
     speed: float
     damping_ratio: float
     windows: tuple[tuple[float, float], ...]
@@ -149,6 +161,10 @@ class _Problem:
     rails: RailTables
     evaluated: dict[tuple[str, float, float], Candidate] = field(default_factory=dict)
     tables: dict[tuple[str, float], ConstraintTable] = field(default_factory=dict)
+    templates: dict[tuple[str, float, float], tuple[NDArray[np.float64], NDArray[np.float64]]] = (
+        field(default_factory=dict))
+    turns: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    period_band: tuple[float, float] = (0.0, 0.0)
 
     def wheel_with(self, zeta: float) -> WheelOnSite:
         """The wheel on the site's foundation with damping ratio ``zeta`` (rigid: as is)."""
@@ -159,7 +175,18 @@ class _Problem:
         return replace(self.wheel, foundation=Foundation.compliant(f.mass, f.stiffness, c))
 
     def template(self, flat: Flat, zeta: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """(τ, filtered force): the flat's centre under the wheel at τ = 0."""
+        """(τ, filtered force): the flat's centre under the wheel at τ = 0 (kept)."""
+        tkey = (flat.kind, round(flat.length, 9), round(zeta, 9))
+        got = self.templates.get(tkey)
+        if got is not None:
+            return got
+        got = self._simulate_template(flat, zeta)
+        self.templates[tkey] = got
+        return got
+
+    def _simulate_template(
+        self, flat: Flat, zeta: float
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         v = self.speed
         half = 0.5 * flat.length / v
         t0, t1 = -(half + PRE_ROLL), half + POST_ROLL
@@ -168,7 +195,10 @@ class _Problem:
         if table is None:  # the same flat is tried at several damping ratios
             table = wheel_table(self.wheel.radius, flat.with_phase(0.0), self.rails, v * t0, v * t1)
             self.tables[key] = table
-        out = simulate_window(self.wheel_with(zeta), v, table, t0, t1, self.fine_rate)
+        wheel = self.wheel_with(zeta)
+        if wheel.rtol < TEMPLATE_RTOL:  # the fit's error is model error, not 1e-8
+            wheel = replace(wheel, rtol=TEMPLATE_RTOL)
+        out = simulate_window(wheel, v, table, t0, t1, self.fine_rate)
         return out.t, _clip(self.sensor.filter(out.force, self.fine_rate), self.wheel.load)
 
     def evaluate(self, kind: FlatKind, length: float, zeta: float) -> Candidate:
@@ -180,14 +210,9 @@ class _Problem:
         flat = Flat.ideal(R, length) if kind == "flat" else Flat.rounded(R, length)
         tau, tf = self.template(flat, zeta)
         half = 0.5 * length / self.speed
-        total = 0.0
-        centres = np.empty(len(self.win))
-        for k, (i0, i1) in enumerate(self.win):
-            tw, fw = self.t[i0:i1], self.f[i0:i1]
-            a = self.anchors[k]
-            s, c = _align(tau, tf, tw, fw, a - half - 0.012, a + half + 0.002)
-            total += c
-            centres[k] = s
+        windows = [(self.t[i0:i1], self.f[i0:i1]) for i0, i1 in self.win]
+        centres, total = _align_periodic(tau, tf, windows, self.anchors, self.turns,
+                                         half, self.period_band)
         cand = Candidate(kind, length, zeta, total, centres)
         self.evaluated[key] = cand
         return cand
@@ -202,22 +227,122 @@ def _clip(f: NDArray[np.float64], load: float) -> NDArray[np.float64]:
     return np.clip(f, 0.0, CLIP * load)
 
 
-def _align(
+def _window_costs(
     tau: NDArray[np.float64], tf: NDArray[np.float64], tw: NDArray[np.float64],
-    fw: NDArray[np.float64], s_lo: float, s_hi: float,
-) -> tuple[float, float]:
-    """(best shift, its cost): the template at τ = t - shift against the window's samples."""
-    step = SHIFT_STEP
-    best_s, best_c = s_lo, math.inf
-    for _ in range(2):
-        shifts = np.arange(s_lo, s_hi + 0.5 * step, step)
-        pred = np.interp(tw[None, :] - shifts[:, None], tau, tf)
-        cost = np.sum((fw[None, :] - pred) ** 2, axis=1)
-        i = int(np.argmin(cost))
-        if cost[i] < best_c:
-            best_s, best_c = float(shifts[i]), float(cost[i])
-        s_lo, s_hi, step = best_s - step, best_s + step, step / 10.0
-    return best_s, best_c
+    fw: NDArray[np.float64], shifts: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """Sum of squared differences over one window for each flat-centre time in ``shifts``
+    (the template ``tf`` is sampled uniformly on ``tau``)."""
+    out = np.empty(shifts.size)
+    _costs_kernel(float(tau[0]), float(tau[1] - tau[0]), tf, tw, fw, shifts, out)
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _costs_kernel(
+    tau0: float, dtau: float, tf: NDArray[np.float64], tw: NDArray[np.float64],
+    fw: NDArray[np.float64], shifts: NDArray[np.float64], out: NDArray[np.float64],
+) -> None:
+    n = tf.size
+    for j in range(shifts.size):
+        acc = 0.0
+        for i in range(tw.size):
+            u = (tw[i] - shifts[j] - tau0) / dtau
+            if u <= 0.0:
+                v = tf[0]
+            elif u >= n - 1:
+                v = tf[n - 1]
+            else:
+                k = int(u)
+                w = u - k
+                v = tf[k] + w * (tf[k + 1] - tf[k])
+            d = fw[i] - v
+            acc += d * d
+        out[j] = acc
+
+
+def _align_periodic(
+    tau: NDArray[np.float64], tf: NDArray[np.float64],
+    windows: list[tuple[NDArray[np.float64], NDArray[np.float64]]],
+    anchors: NDArray[np.float64], turns: NDArray[np.int64], half: float,
+    band: tuple[float, float],
+) -> tuple[NDArray[np.float64], float]:
+    """(flat-centre time per window, total cost) with the centres once per turn.
+
+    A flat meets the rail exactly once per turn, so the centres are s0 + n_k·T with one
+    s0 and one period T in ``band`` (the speed's uncertainty): a round wheel's random
+    bumps cannot be fitted turn by turn. Coarse grid on every window's cost curve, then a
+    tenfold finer grid around the best (s0, T).
+    """
+    t_lo, t_hi = band
+    n = turns.astype(np.float64)
+    n_max = max(float(n.max()), 1.0)
+    s0_grid = np.arange(anchors[0] - half - 0.012, anchors[0] + half + 0.002 + 0.5 * SHIFT_STEP,
+                        SHIFT_STEP)
+    n_t = max(3, int(np.ceil((t_hi - t_lo) * n_max / SHIFT_STEP)) + 1)
+    t_grid = np.linspace(t_lo, t_hi, n_t)
+    total = np.zeros((s0_grid.size, t_grid.size))
+    for k, (tw, fw) in enumerate(windows):
+        lo = s0_grid[0] + n[k] * t_lo - SHIFT_STEP
+        hi = s0_grid[-1] + n[k] * t_hi + SHIFT_STEP
+        sk = np.arange(lo, hi + 0.5 * SHIFT_STEP, SHIFT_STEP)
+        ck = _window_costs(tau, tf, tw, fw, sk)
+        total += np.interp(s0_grid[:, None] + n[k] * t_grid[None, :], sk, ck)
+    i, j = np.unravel_index(int(np.argmin(total)), total.shape)
+    s0, period = float(s0_grid[i]), float(t_grid[j])
+    dt = (t_grid[1] - t_grid[0]) if t_grid.size > 1 else 0.0
+    fine_s = s0 + np.linspace(-SHIFT_STEP, SHIFT_STEP, 11)
+    fine_t = period + np.linspace(-dt, dt, 11) if windows[1:] else np.array([period])
+    best = np.zeros((fine_s.size, fine_t.size))
+    for k, (tw, fw) in enumerate(windows):
+        shifts = (fine_s[:, None] + n[k] * fine_t[None, :]).ravel()
+        best += _window_costs(tau, tf, tw, fw, shifts).reshape(best.shape)
+    i, j = np.unravel_index(int(np.argmin(best)), best.shape)
+    s0, period = float(fine_s[i]), float(fine_t[j])
+    return s0 + n * period, float(best[i, j])
+
+
+NULL_OFFSETS = (0.2, 0.35, 0.5, 0.65, 0.8)
+"""Fractions of a turn at which the best flat is also fitted, where there is no flat."""
+
+
+def _contrast(prob: _Problem, best: Candidate, before: float, after: float,
+              significance: float, rate: float, sensor: SensorModel) -> float:
+    """How much better the best flat explains the once-per-turn windows than the same flat
+    explains windows a fraction of a turn away (where a real flat has nothing): the
+    significance over the largest of those null significances."""
+    R = prob.wheel.radius
+    flat = Flat.ideal(R, best.length) if best.kind == "flat" else Flat.rounded(R, best.length)
+    tau, tf = prob.template(flat, best.zeta)
+    half = 0.5 * best.length / prob.speed
+    t, f = prob.t, prob.f
+    period = TWO_PI * R / prob.speed
+    worst = 1.0
+    for frac in NULL_OFFSETS:
+        anchors = prob.anchors + frac * period
+        ok = (anchors - before >= t[0]) & (anchors + after <= t[-1])
+        if not np.any(ok):
+            continue
+        win = [(t[int(np.searchsorted(t, a - before)):int(np.searchsorted(t, a + after))],
+                f[int(np.searchsorted(t, a - before)):int(np.searchsorted(t, a + after))])
+               for a in anchors[ok]]
+        turns = prob.turns[ok] - prob.turns[ok][0]
+        _, cost = _align_periodic(tau, tf, win, anchors[ok], turns, half, prob.period_band)
+        n = sum(w[0].size for w in win)
+        load = prob.wheel.load
+        c_round = float(sum(np.sum((w[1] - load) ** 2) for w in win))
+        n_eff = max(n * (min(1.0, 2.0 * sensor.cutoff_hz / rate) if sensor.cutoff_hz else 1.0), 1.0)
+        if cost > 0:
+            worst = max(worst, (c_round - cost) / (cost / n_eff))
+    return significance / worst
+
+
+def _best(prob: _Problem, kind: str, *, length: float | None = None,
+          zeta: float | None = None) -> Candidate:
+    """The cheapest evaluated candidate of ``kind`` (at ``length`` or at ``zeta`` if given)."""
+    return min((c for c in prob.evaluated.values() if c.kind == kind
+                and (length is None or c.length == length) and (zeta is None or c.zeta == zeta)),
+               key=lambda c: c.cost)
 
 
 def _golden(
@@ -305,10 +430,15 @@ def estimate_flat(
     cost_round = float(sum(np.sum((f[i0:i1] - P) ** 2) for i0, i1 in win))
     windows = tuple((float(t[i0]), float(t[i1 - 1])) for i0, i1 in win)
     if not win:
-        return FlatEstimate(None, None, 0.0, 0.0, 0.0, cost_round, cost_round, 0, 0.0, v,
+        return FlatEstimate(None, None, 0.0, 0.0, 0.0, cost_round, cost_round, 0, 0.0, 0.0, v,
                             0.0, windows, (), time.perf_counter() - start)
-    prob = _Problem(wheel, v, sensor, sensor.fine_rate(rate), t, f, win, np.array(kept),
-                    RailTables(RailProfile.flat()))
+    kept_a = np.array(kept)
+    t_speed = TWO_PI * R / speed
+    turns = np.rint((kept_a - kept_a[0]) / t_speed).astype(np.int64)
+    band = (t_speed / (1.0 + options.speed_uncertainty_fit),
+            t_speed / (1.0 - options.speed_uncertainty_fit))
+    prob = _Problem(wheel, v, sensor, sensor.fine_rate(rate), t, f, win, kept_a,
+                    RailTables(RailProfile.flat()), turns=turns, period_band=band)
     grid = tuple(sorted(options.lengths))
     f_site = wheel.foundation
     zetas: tuple[float, ...] = (0.0,)
@@ -321,38 +451,67 @@ def estimate_flat(
         for z in zetas:
             for ln in grid:
                 prob.evaluate(kind, ln, z)
-    coarse = min(prob.evaluated.values(), key=lambda c: c.cost)
-    zeta = coarse.zeta
-    # 2. the foundation's damping, then each kind's length, by golden sections
-    if len(zetas) > 1:
-        iz = zetas.index(zeta)
-        _golden(lambda z: prob.evaluate(coarse.kind, coarse.length, z).cost,
-                zetas[max(iz - 1, 0)], zetas[min(iz + 1, len(zetas) - 1)],
-                options.refine_evaluations - 2)
-        zeta = min((c for c in prob.evaluated.values()
-                    if c.kind == coarse.kind and c.length == coarse.length),
-                   key=lambda c: c.cost).zeta
+    # 2. per kind, the length and the foundation's damping ratio by alternating golden
+    #    sections (they trade off: more damping looks like a shorter flat)
+    best_of_kind: dict[str, Candidate] = {}
     for kind in options.kinds:
-        costs = [prob.evaluate(kind, ln, zeta).cost for ln in grid]
-        i = int(np.argmin(costs))
-        lo, hi = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
-        _golden(lambda ln, kind=kind: prob.evaluate(kind, ln, zeta).cost, lo, hi,
-                options.refine_evaluations)
-    at_zeta = [c for c in prob.evaluated.values() if c.zeta == zeta]
-    best = min(at_zeta, key=lambda c: c.cost)
+        cur = min((c for c in prob.evaluated.values() if c.kind == kind), key=lambda c: c.cost)
+        ln, z = cur.length, cur.zeta
+        for rnd in range(options.refine_rounds):
+            if len(zetas) > 1:
+                if rnd == 0:
+                    iz = zetas.index(z)
+                    zlo, zhi = zetas[max(iz - 1, 0)], zetas[min(iz + 1, len(zetas) - 1)]
+                else:
+                    zlo, zhi = max(0.0, z - 0.06), min(zetas[-1], z + 0.06)
+                _golden(lambda zz, kind=kind, ln=ln: prob.evaluate(kind, ln, zz).cost, zlo, zhi,
+                        options.refine_evaluations - 2)
+                z = _best(prob, kind, length=ln).zeta
+            if rnd == 0:
+                i = int(np.argmin([prob.evaluate(kind, g, z).cost for g in grid]))
+                llo, lhi = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
+            else:
+                llo, lhi = 0.9 * ln, min(1.1 * ln, grid[-1])
+            _golden(lambda ll, kind=kind, z=z: prob.evaluate(kind, ll, z).cost, llo, lhi,
+                    options.refine_evaluations)
+            ln = _best(prob, kind, zeta=z).length
+        best_of_kind[kind] = _best(prob, kind, zeta=z)
+    best = min(best_of_kind.values(), key=lambda c: c.cost)
+    at_zeta = [c for c in prob.evaluated.values() if c.zeta == best.zeta]
     n_eff = n * (min(1.0, 2.0 * sensor.cutoff_hz / rate) if sensor.cutoff_hz else 1.0)
     n_eff = max(n_eff, 1.0)
     significance = (cost_round - best.cost) / (best.cost / n_eff) if best.cost > 0 else math.inf
     # the residuals are model error, correlated over a window: a few degrees of freedom each
     j_max = best.cost * (1.0 + 3.84 / (options.dof_per_window * len(win)))
-    points = [(c.length, c.cost) for c in at_zeta if c.kind == best.kind]
-    lo, hi = _interval(points, j_max, best.length)
+    # the interval: every kind whose best is within j_max contributes its own (a fresh flat
+    # and a worn one ~25 % longer can make the same windows), each walked out from its best
+    # length at its damping until the cost passes j_max
+    lo, hi = best.length, best.length
+    for cand in best_of_kind.values():
+        if cand.cost > j_max and cand is not best:
+            continue
+        for direction in (-1.0, 1.0):
+            for step in (0.06, 0.15, 0.3, 0.5):
+                ln = cand.length * (1.0 + direction * step)
+                if not 0.002 <= ln <= 2.0 * grid[-1]:
+                    break
+                if prob.evaluate(cand.kind, ln, cand.zeta).cost > j_max:
+                    break
+        points = [(c.length, c.cost) for c in prob.evaluated.values()
+                  if c.zeta == cand.zeta and c.kind == cand.kind]
+        k_lo, k_hi = _interval(points, j_max, cand.length)
+        lo, hi = min(lo, k_lo), max(hi, k_hi)
+    at_zeta = [c for c in prob.evaluated.values() if c.zeta == best.zeta]
     lo *= 1.0 - options.speed_uncertainty
     hi *= 1.0 + options.speed_uncertainty
     # the detection floor: above ~75 km/h a few µm of unknown roughness excite as much dynamic
     # force as a 10-15 mm flat (tuning set: round wheels fitted up to 14.7 mm there)
+    contrast = _contrast(prob, best, before, after, significance, rate, sensor)
     floor = options.min_length_fast if v >= options.fast_speed else options.min_length
-    found = best.length >= floor and significance >= options.detection
+    # below the floor, a flat is reported only if it stands out of its own record: its
+    # once-per-turn windows fit it far better than windows a fraction of a turn away
+    standout = contrast >= options.contrast and best.length >= options.min_length_contrast
+    found = significance >= options.detection and (best.length >= floor or standout)
     flat: Flat | None = None
     if found:
         phases = np.exp(1j * (-(v * best.centres) / R))
@@ -362,5 +521,5 @@ def estimate_flat(
     profile = tuple((c.kind, c.length, c.cost) for c in
                     sorted(at_zeta, key=lambda c: (c.kind, c.length)))
     return FlatEstimate(flat, best.kind, best.length, lo, hi, cost_round, best.cost, n,
-                        float(significance), v, best.zeta, windows, profile,
+                        float(significance), float(contrast), v, best.zeta, windows, profile,
                         time.perf_counter() - start)

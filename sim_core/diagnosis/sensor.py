@@ -69,8 +69,8 @@ class SensorModel:
             raise ValueError(
                 f"sensor: cut-off {self.cutoff_hz:g} Hz is not below the Nyquist limit of {rate:g} Hz"
             )
-        sos = _butter(self.order, float(self.cutoff_hz), float(rate))
-        zi = signal.sosfilt_zi(sos) * f[0]
+        sos, zi_unit = _butter(self.order, float(self.cutoff_hz), float(rate))
+        zi = zi_unit * f[0]
         out, _ = signal.sosfilt(sos, f, zi=zi)
         return np.asarray(out, dtype=np.float64)
 
@@ -84,15 +84,17 @@ class SensorModel:
         return np.interp(t_out, t, self.filter(f, rate))
 
 
-_SOS_CACHE: dict[tuple[int, float, float], NDArray[np.float64]] = {}
+_SOS_CACHE: dict[tuple[int, float, float], tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
 
 
-def _butter(order: int, cutoff: float, rate: float) -> NDArray[np.float64]:
+def _butter(order: int, cutoff: float, rate: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(second-order sections, their steady-state initial conditions for a unit input)."""
     key = (order, cutoff, round(rate, 6))
-    sos = _SOS_CACHE.get(key)
-    if sos is None:
+    got = _SOS_CACHE.get(key)
+    if got is None:
         sos = np.asarray(signal.butter(order, cutoff, btype="low", output="sos", fs=rate))
+        got = (sos, np.asarray(signal.sosfilt_zi(sos)))
         if len(_SOS_CACHE) > 64:
             _SOS_CACHE.clear()
-        _SOS_CACHE[key] = sos
-    return sos
+        _SOS_CACHE[key] = got
+    return got
