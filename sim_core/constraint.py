@@ -999,22 +999,7 @@ def flat_constraint(period: float = 1.0, resolution: float = MAX_RESOLUTION) -> 
 def _table_from_nodes(
     nodes: NDArray[np.float64], period: float, resolution: float, dx: float
 ) -> ConstraintTable:
-    # merge nodes closer than the position round-off (keep left slope of the first)
-    x = nodes[:, _X]
-    keep = np.ones(x.size, bool)
-    keep[1:] = np.diff(x) > 1e-13 * np.maximum(1.0, np.abs(x[1:]))
-    if not keep.all():
-        idx = np.flatnonzero(keep)
-        grp = np.cumsum(keep) - 1
-        merged = nodes[idx].copy()
-        last = np.zeros(idx.size, np.int64)
-        np.maximum.at(last, grp, np.arange(x.size))
-        merged[:, _SR] = nodes[last, _SR]
-        merged[:, _XD] = nodes[last, _XD]
-        kflag = np.zeros(idx.size)
-        np.maximum.at(kflag, grp, nodes[:, _K])
-        merged[:, _K] = kflag
-        nodes = merged
+    nodes = _merge_close(nodes)
     # a slope jump below KINK_SLOPE is round-off, not a kink: make the node smooth
     tiny = np.abs(nodes[:, _SL] - nodes[:, _SR]) <= KINK_SLOPE
     mean = 0.5 * (nodes[:, _SL] + nodes[:, _SR])
@@ -1035,6 +1020,25 @@ def _table_from_nodes(
         resolution=float(resolution),
         meta={"dx": float(dx), "nodes": float(nodes.shape[0])},
     )
+
+
+@numba.njit(cache=True)
+def _merge_close(nodes: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Nodes closer than the position round-off merged (the left slope of the first, the
+    right slope and contact point of the last, a kink if any was one)."""
+    n = nodes.shape[0]
+    out = np.empty_like(nodes)
+    m = 0
+    for i in range(n):
+        xi = nodes[i, _X]
+        if m > 0 and xi - nodes[i - 1, _X] <= 1e-13 * max(1.0, abs(xi)):
+            out[m - 1, _SR] = nodes[i, _SR]
+            out[m - 1, _XD] = nodes[i, _XD]
+            out[m - 1, _K] = max(out[m - 1, _K], nodes[i, _K])
+            continue
+        out[m] = nodes[i]
+        m += 1
+    return out[:m]
 
 
 def _general_args(
@@ -1337,7 +1341,9 @@ def _round_nodes(
         return hit[3]
     lo = min(x0, float(rail.x[0]) - 0.05)
     hi = max(x1, float(rail.x[-1]) + 0.05)
-    nodes = _tabulate_poly(lo, hi, max(math.ceil((hi - lo) / step), 2), R, poly.vx, poly.vy, 16)
+    nodes = _merge_close(
+        _tabulate_poly(lo, hi, max(math.ceil((hi - lo) / step), 2), R, poly.vx, poly.vy, 16)
+    )
     for k in [k for k, v in _ROUND_CACHE.items() if v[0]() is None]:
         del _ROUND_CACHE[k]
     while len(_ROUND_CACHE) >= 16:
@@ -1401,28 +1407,45 @@ def _tabulate_polyline(
         return max(math.ceil((hi - lo) / step), 2)
 
     zones = flat_zones(wheel, poly, phase, x0, x1)
-    gaps = []
+    # the stretch in order: gaps (round closed form, cut from the rail's round table at exact
+    # end nodes unless a zone supplies the node) and zones (the cell sweep)
+    pieces: list[tuple[str, float, float]] = []
     cur = x0
     for za, zb in zones:
         if za > cur:
-            gaps.append((cur, za))
-        parts.append(
-            sweep_kernel(P, R, poly.vx, poly.vy, poly.slope, phase, za, zb, nint(za, zb), HERMITE_TOL)
-        )
+            pieces.append(("gap", cur, za))
+        pieces.append(("zone", za, zb))
         cur = zb
     if cur < x1:
-        gaps.append((cur, x1))
-    if gaps:
+        pieces.append(("gap", cur, x1))
+    zone_ends = {e for _, za, zb in pieces if _ == "zone" for e in (za, zb)}
+    rn = np.empty((0, _NCOL))
+    ends = np.empty((0, _NCOL))
+    if any(kind == "gap" for kind, _, _ in pieces):
         rn = _round_nodes(rail, poly, R, step, x0, x1)
-        cuts = np.array([c for gap in gaps for c in gap])
-        ends = _poly_points(cuts, R, poly.vx, poly.vy)
-        for i, (c, d) in enumerate(gaps):
-            lo_i, hi_i = np.searchsorted(rn[:, _X], [c, d], side="right")
-            parts.append(ends[2 * i : 2 * i + 1])
-            parts.append(rn[lo_i:hi_i][rn[lo_i:hi_i, _X] < d])
-            parts.append(ends[2 * i + 1 : 2 * i + 2])
+        cuts = np.array(
+            [e for kind, c, d in pieces if kind == "gap" for e in (c, d) if e not in zone_ends]
+        )
+        ends = _poly_points(cuts, R, poly.vx, poly.vy) if cuts.size else ends
+    ie = 0
+    for kind, c, d in pieces:
+        if kind == "zone":
+            parts.append(
+                sweep_kernel(P, R, poly.vx, poly.vy, poly.slope, phase, c, d, nint(c, d), HERMITE_TOL)
+            )
+            continue
+        if c not in zone_ends:
+            parts.append(ends[ie : ie + 1])
+            ie += 1
+        lo_i = int(np.searchsorted(rn[:, _X], c, side="right"))
+        hi_i = int(np.searchsorted(rn[:, _X], d, side="left"))
+        parts.append(rn[lo_i:hi_i])
+        if d not in zone_ends:
+            parts.append(ends[ie : ie + 1])
+            ie += 1
     nodes = np.concatenate(parts)
-    nodes = nodes[np.argsort(nodes[:, _X], kind="mergesort")]
+    if not np.all(np.diff(nodes[:, _X]) > 0):
+        nodes = nodes[np.argsort(nodes[:, _X], kind="mergesort")]
     return _table_from_nodes(nodes, 0.0, resolution, step)
 
 

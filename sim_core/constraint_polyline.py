@@ -214,7 +214,7 @@ def _psi_at(
         fp = r1 * sp + rho * math.cos(psi)
         d = f / fp
         psi -= d
-        if abs(d) <= 1e-17:
+        if abs(d) <= 1e-9:  # quadratic convergence: this step left an error ~1e-18 rad
             break
     return psi
 
@@ -295,7 +295,8 @@ def _stationary(
         nxt = psi - gp / gpp if gpp < 0.0 else 0.5 * (a + b)
         if not (a < nxt < b):
             nxt = 0.5 * (a + b)
-        done = abs(nxt - psi) <= 1e-16 * (1.0 + abs(psi)) or b - a <= 4e-16
+        # a Newton step of 1e-9 rad leaves ~1e-18 rad (quadratic convergence)
+        done = (gpp < 0.0 and abs(nxt - psi) <= 1e-9) or b - a <= 4e-16
         psi = nxt
         g, gp, gpp, xd, _, r1 = _g_line(P, k, sh, R, x, phi, psi, xj, yj, s)
         if done or gp == 0.0:
