@@ -4,8 +4,8 @@ Coefficients copied from SciPy (scipy/integrate/_ivp/dop853_coefficients.py,
 BSD-3-Clause, Copyright (c) 2001-2002 Enthought, Inc. and 2003-2024 SciPy
 Developers), which took them from Hairer's Fortran DOP853. Only the 12-stage
 step and its 5th/3rd-order error estimators are kept: railtwin interpolates
-positions with a quintic Hermite polynomial (positions, velocities and
-accelerations at both step ends), which needs no extra stages.
+positions with a septic Hermite polynomial (positions, velocities,
+accelerations and jerks at both step ends), which needs no extra stages.
 """
 
 import numpy as np
