@@ -209,7 +209,7 @@ class ProcessPhysics:
             raise RuntimeError(f"the physics worker did not start within {self.start_timeout:g} s")
         try:
             reply = parent.recv()
-        except EOFError as exc:
+        except (EOFError, OSError) as exc:
             self._kill()
             raise RuntimeError("the physics worker died while starting") from exc
         if reply[0] != "ok":

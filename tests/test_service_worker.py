@@ -43,9 +43,8 @@ length = 60.0
 output_sample_rate = 1000.0
 contact = "hertz"
 [rail]
-kind = "cosine"
-amplitude = 2.0e-6
-wavelength = 0.06
+kind = "file"
+path = "rail.csv"
 [material]
 youngs_modulus = 2.14e11
 poisson_ratio = 0.3
@@ -56,7 +55,7 @@ def test_plastic_rail_survives_a_worker_killed_for_its_budget() -> None:
     flat = WHEEL.model_copy(update={"passage_id": "flat",
                                     "outline": FlatOutline(kind="flat", length=0.05),
                                     "phase": (-0.8 / WHEEL.radius) % math.tau})
-    physics = ProcessPhysics(PLASTIC, budget=60.0)
+    physics = ProcessPhysics(PLASTIC, budget=60.0, warm_up=False)
     physics.start()
     try:
         dented = physics.simulate(flat)
@@ -77,8 +76,19 @@ def test_plastic_rail_survives_a_worker_killed_for_its_budget() -> None:
         physics.close()
 
 
+def write_slow_site(directory: Path) -> Path:
+    """A 60 m site on a measured (sampled, 1 mm) rail: no fast constraint sweep applies."""
+    n = 60_201
+    rows = [f"{-0.1 + i * 1e-3:.4f},{2e-6 * math.cos(2 * math.pi * i * 1e-3 / 0.06) + 1e-7 * ((i * 7919) % 13 - 6) / 6:.4e}"
+            for i in range(n)]
+    (directory / "rail.csv").write_text("x,y\n" + "\n".join(rows) + "\n")
+    site = directory / "slow.toml"
+    site.write_text(SLOW_SITE)
+    return site
+
+
 def slow_wheel(pid: str) -> dict[str, Any]:
-    """A wheel with a 4 096-point measured outline: ~3 s over the 60 m site (tabulation)."""
+    """A wheel with a 4 096-point measured outline: seconds over the slow site (tabulation)."""
     n = 4096
     theta = [2 * math.pi * i / n for i in range(n)]
     radius = [0.46 + 1e-5 * math.sin(5 * t) for t in theta]
@@ -117,8 +127,7 @@ class Prober:
 
 
 def test_never_deaf_budget_and_sigterm(tmp_path: Path) -> None:
-    site = tmp_path / "slow.toml"
-    site.write_text(SLOW_SITE)
+    site = write_slow_site(tmp_path)
     keys = SiteKeys("slow")
     endpoint = free_tcp_endpoint()
     results: dict[str, PassageResult] = {}
@@ -173,3 +182,25 @@ def test_never_deaf_budget_and_sigterm(tmp_path: Path) -> None:
     print(f"SIGTERM during a passage: stopped in {stopped:.1f} s (budget {BUDGET:g} s)")
     assert svc.returncode == 0, svc.output
     assert stopped < BUDGET + 5.0, svc.output
+
+
+def test_port_taken_is_one_line(tmp_path: Path) -> None:
+    import socket
+    import subprocess
+    import sys
+
+    site = write_slow_site(tmp_path)
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        proc = subprocess.run(
+            [sys.executable, "-m", "service.serve_cli", "--site", str(site), "--listen",
+             f"tcp/127.0.0.1:{port}", "--physics", "stub", "--no-mcap", "--no-rerun"],
+            capture_output=True, text=True, timeout=120,
+            cwd=Path(__file__).resolve().parents[1],
+        )
+    assert proc.returncode == 1, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Address already in use" in lines[0], proc.stderr
+    assert "Traceback" not in proc.stderr and "/root/" not in lines[0]
