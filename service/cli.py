@@ -45,7 +45,7 @@ exit status:
 """
 
 OPTIONAL_COMMAND_MODULES: tuple[str, ...] = (
-    "service.serve_cli", "service.replay_cli", "service.diagnose_cli",
+    "service.serve_cli", "service.replay_cli", "service.diagnose_cli", "service.recover_cli",
 )
 """Modules that add subcommands when present (each defines ``register(subparsers)``)."""
 
