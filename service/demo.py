@@ -35,18 +35,26 @@ def main(argv: list[str] | None = None) -> int:
           "(the first start compiles the physics: allow a minute)", flush=True)
     with ServiceProcess(args.site, listen=endpoint, recordings=args.recordings,
                         start_timeout=300.0) as svc:
+        saved = args.recordings / "demo-measured.json"
+        args.recordings.mkdir(parents=True, exist_ok=True)
+        measured_cmd = [sys.executable, "-m", "service.measured_feeder", "--train",
+                        str(args.train), "--site-file", str(args.site)]
+        print("demo: the site's measured force of four wheels, made by the generator "
+              "(each wheel's own outline, unknown roughness and damping, sensor noise)",
+              flush=True)
+        subprocess.run([*measured_cmd, "--save", str(saved)], cwd=ROOT, check=False)
+        print("demo: streaming the train; each measurement follows its wheel off the site, "
+              "and the twin diagnoses it while the train streams", flush=True)
+        measured_proc = subprocess.Popen(
+            [*measured_cmd, "--load", str(saved), "--with-train", "--connect", endpoint,
+             "--timeout", "120"], cwd=ROOT,
+        )
         feeder = subprocess.run(
             [sys.executable, "-m", "service.feeder", "--train", str(args.train),
              "--site", site.site_id, "--connect", endpoint, "--timeout", "300"],
             cwd=ROOT, check=False,
         )
-        print("\ndemo: the site's measured force of four wheels (made by the generator) -> "
-              "the twin's diagnosis", flush=True)
-        measured = subprocess.run(
-            [sys.executable, "-m", "service.measured_feeder", "--train", str(args.train),
-             "--site-file", str(args.site), "--connect", endpoint, "--timeout", "120"],
-            cwd=ROOT, check=False,
-        )
+        measured_code = measured_proc.wait()
     if svc.returncode != 0:
         print(svc.output, file=sys.stderr)
         return 1
@@ -55,7 +63,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"demo: MCAP log (open in Foxglove):      {f}")
     if svc.rrd_file is not None:
         print(f"demo: Rerun recording (rerun FILE.rrd): {svc.rrd_file}")
-    return feeder.returncode or measured.returncode
+    return feeder.returncode or measured_code
 
 
 if __name__ == "__main__":

@@ -2,17 +2,22 @@
 
     python -m service.measured_feeder --train recordings/samples/train_160kmh.json \\
         --site-file examples/site.toml --connect tcp/127.0.0.1:7447 [--axles 0 5 13 20]
+        [--save M.json | --load M.json] [--with-train]
 
 The measurements are made by the generator (``service.synthesize``: each wheel's own
 outline, unknown roughness, foundation damping, sensor chain and noise); the wheels'
 passages must already have been sent (``service.feeder``), or come later: the twin pairs
 them by passage id. One line per diagnosis, with the time from publishing the
-measurement to receiving its verdict.
+measurement to receiving its verdict. ``--save`` only generates (no Zenoh), ``--load``
+publishes saved ones; ``--with-train`` publishes each measurement when its wheel leaves
+the site, timed from the start like ``service.feeder`` times the train (run both
+together: the diagnoses are then made while the train streams, as at a real site).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import threading
 import time
@@ -52,20 +57,33 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--connect", action="append", default=[], metavar="ENDPOINT")
     p.add_argument("--axles", type=int, nargs="+", default=list(DEFAULT_AXLES))
     p.add_argument("--timeout", type=float, default=60.0)
+    p.add_argument("--save", type=Path, default=None, help="only generate, into this file")
+    p.add_argument("--load", type=Path, default=None, help="publish measurements saved before")
+    p.add_argument("--with-train", action="store_true",
+                   help="publish each when its wheel leaves the site (train timing)")
     a = p.parse_args(argv)
     site = load_site(a.site_file)
     train = load_train(a.train)
     keys = SiteKeys(site.site_id)
-    diagnoser = Diagnoser(site)
-    wheels = [w.passage for w in train.wheels if w.passage.axle_index in set(a.axles)]
-    print(f"measured: generating the site's measurement of {len(wheels)} wheels "
-          f"(axles {', '.join(str(w.axle_index) for w in wheels)})", flush=True)
+    offsets = {w.passage.passage_id: w.offset + site.length / w.passage.speed
+               for w in train.wheels}
     payloads: list[MeasuredPassage] = []
-    for i, w in enumerate(wheels):
-        m = measure(site, w, passage_tread(w), seed=1000 + i, diagnoser=diagnoser)
-        payloads.append(MeasuredPassage(passage_id=w.passage_id, sample_rate=m.sample_rate,
-                                        t_start=m.t_start, force=m.force.tolist(),
-                                        speed=w.speed))
+    if a.load is not None:
+        payloads = [MeasuredPassage.model_validate(d)
+                    for d in json.loads(a.load.read_text(encoding="utf-8"))]
+    else:
+        diagnoser = Diagnoser(site)
+        wheels = [w.passage for w in train.wheels if w.passage.axle_index in set(a.axles)]
+        print(f"measured: generating the site's measurement of {len(wheels)} wheels "
+              f"(axles {', '.join(str(w.axle_index) for w in wheels)})", flush=True)
+        for i, w in enumerate(wheels):
+            m = measure(site, w, passage_tread(w), seed=1000 + i, diagnoser=diagnoser)
+            payloads.append(MeasuredPassage(passage_id=w.passage_id, sample_rate=m.sample_rate,
+                                            t_start=m.t_start, force=m.force.tolist(),
+                                            speed=w.speed))
+    if a.save is not None:
+        a.save.write_text(json.dumps([m.model_dump() for m in payloads]), encoding="utf-8")
+        return 0
     sent: dict[str, float] = {}
     got: dict[str, Diagnosis] = {}
     done = threading.Event()
@@ -94,11 +112,17 @@ def main(argv: list[str] | None = None) -> int:
         pub = session.declare_publisher(keys.measured, encoding=json_encoding(MeasuredPassage),
                                         congestion_control=zenoh.CongestionControl.BLOCK)
         wait_matching(pub, 10.0)
-        for mp in payloads:
+        start = time.monotonic()
+        for mp in sorted(payloads, key=lambda m: offsets.get(m.passage_id, 0.0)):
+            if a.with_train:
+                delay = start + offsets.get(mp.passage_id, 0.0) - time.monotonic()
+                if delay > 0:
+                    time.sleep(delay)
             with lock:
                 sent[mp.passage_id] = time.monotonic()
             pub.put(mp.model_dump_json().encode())
-            time.sleep(0.05)  # a train brings a wheel every ~50 ms
+            if not a.with_train:
+                time.sleep(0.05)  # a train brings a wheel every ~50 ms
         ok = done.wait(a.timeout)
         sub.undeclare()
     if not ok:
