@@ -102,6 +102,12 @@ class Diagnoser:
             raise MeasurementError("force", f"the record lasts {measured.duration * 1e3:.1f} ms, "
                                    f"less than {MIN_RECORD_FRACTION:.0%} of the "
                                    f"{on_site * 1e3:.1f} ms the wheel spends on the site")
+        overlap = min(measured.t_start + measured.duration, on_site) - max(measured.t_start, 0.0)
+        if overlap < MIN_RECORD_FRACTION * on_site:
+            raise MeasurementError(
+                "t_start", f"the record [{measured.t_start:g}, "
+                f"{measured.t_start + measured.duration:g}] s covers less than "
+                f"{MIN_RECORD_FRACTION:.0%} of the wheel's time on the site [0, {on_site:g}] s")
         f = np.asarray(measured.force)
         if float(np.ptp(f)) == 0.0:
             raise MeasurementError("force", "the record is constant: no sensor signal")

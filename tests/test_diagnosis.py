@@ -187,6 +187,10 @@ def test_measurement_checks_name_the_field() -> None:
     with pytest.raises(MeasurementError) as e:
         d.check(_passage(), MeasuredPassage(**{**good, "speed": 30.0}))  # type: ignore[arg-type]
     assert e.value.field == "speed"
+    with pytest.raises(MeasurementError) as e:  # a whole record, but of another time
+        d.check(_passage(), MeasuredPassage(**{**good, "t_start": 100.0}))  # type: ignore[arg-type]
+    assert e.value.field == "t_start"
+    assert d.check(_passage(), MeasuredPassage(**{**good, "t_start": -0.01})) == 25.0  # type: ignore[arg-type]
 
 
 def test_csv_with_a_wrong_header_is_refused(tmp_path: Path) -> None:
