@@ -177,7 +177,8 @@ def _passage(speed: float = 25.0) -> WheelPassage:
 def test_measurement_checks_name_the_field() -> None:
     site = load_site(SITE)
     d = Diagnoser(site)
-    good = dict(passage_id="t-a1-r", sample_rate=1e4, t_start=0.0, force=[P] * 2500)
+    good = dict(passage_id="t-a1-r", sample_rate=1e4, t_start=0.0,
+                force=[P + i % 7 for i in range(2500)])
     with pytest.raises(MeasurementError) as e:
         d.check(_passage(), MeasuredPassage(**{**good, "sample_rate": 2e4}))  # type: ignore[arg-type]
     assert e.value.field == "sample_rate"
