@@ -566,23 +566,33 @@ def _feature_eval(
     r: int,
     x: float,
 ) -> tuple[float, float, float]:
-    """(value, slope, x_D) of feature (t, g, r) at x by its own formula (continued past its cell)."""
+    """(value, slope, x_D) of feature (t, g, r) at x by its own formula; value -inf where the
+    feature is not a real contact candidate (its wheel point off the piece, its rail point off
+    the segment), so that it never exceeds y_C^k."""
     phi = phase + x / R
+    k, sh = _shift(g, n)
     if t == FT_W:
-        k, sh = _shift(g, n)
         psi = P[k, _T1] + sh - phi
         G, _, _, xd, dr, _ = _g_line(P, k, sh, R, x, phi, psi, vx[r], vy[r], sl[r])
+        if xd < vx[r] - 1e-13 or xd > vx[r + 1] + 1e-13:
+            return -np.inf, 0.0, xd
         return G, _slope_W(R, psi, dr, sl[r]), xd
-    k, sh = _shift(g, n)
+    lo = P[k, _T0] + sh - phi
+    hi = P[k, _T1] + sh - phi
     if t == FT_V:
         psi = _psi_at(P, k, sh, R, x, phi, vx[r])
         dr, r1, _ = _rho(P, k, R, psi + phi - sh)
+        xd = x + (R + dr) * math.sin(psi)
+        if psi < lo - 1e-13 or psi > hi + 1e-13:
+            return -np.inf, 0.0, xd
         h = math.sin(0.5 * psi)
         G = vy[r] + dr * math.cos(psi) - 2.0 * R * h * h
-        return G, _slope_V(R, psi, dr, r1), x + (R + dr) * math.sin(psi)
-    lo = max(P[k, _T0] + sh - phi, -CLIP)
-    hi = min(P[k, _T1] + sh - phi, CLIP)
+        return G, _slope_V(R, psi, dr, r1), xd
+    lo = max(lo, -CLIP)
+    hi = min(hi, CLIP)
     G, psi, xd, r1 = _stationary(P, k, sh, R, x, phi, lo, hi, vx[r], vy[r], sl[r])
+    if not (lo <= psi <= hi) or xd < vx[r] - 1e-13 or xd > vx[r + 1] + 1e-13:
+        return -np.inf, 0.0, xd
     return G, _slope_T(R, psi, r1, sl[r]), xd
 
 
@@ -717,8 +727,10 @@ def sweep_kernel(
                     lo = m
                 elif dm < 0.0:
                     hi = m
-                else:
+                elif dm == 0.0:
                     lo = hi = m
+                else:  # neither feature is a candidate here: classify by the cells instead
+                    break
             while not direct and hi - lo > 1e-13 * scale:
                 m = 0.5 * (lo + hi)
                 if m <= lo or m >= hi:
@@ -741,7 +753,8 @@ def sweep_kernel(
                 )
                 top = max(va, vb)
                 isab = (tg == tA and gg == gA and rg == rA) or (tg == tB and gg == gB and rg == rB)
-                if (vg > top + 1e-15 and not isab) or top > vg + 1e-15:
+                valid = va > -np.inf and vb > -np.inf
+                if (vg > top + 1e-17 and not isab) or top > vg + 1e-15 or not valid:
                     xn = xs
                     third = True
                 elif xa < xs < xb:
@@ -791,6 +804,10 @@ def sweep_kernel(
                     ns += 1
                     continue
             split = True
+            if not (xa < xn < xb):
+                xn = 0.5 * (xa + xb)
+                if hlen <= 1.6e-12 * scale:
+                    continue
         else:
             xn = 0.5 * (xa + xb)
             if hlen <= 1.6e-12 * scale:
