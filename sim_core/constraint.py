@@ -98,12 +98,12 @@ from sim_core.wheel import (
 
 __all__ = [
     "amplitude_spectrum",
-    "warm_up_constraint",
     "curvature_stiffness_scale",
     "evaluate_exact",
     "flat_constraint",
     "profile_constraint",
     "tabulate_constraint",
+    "warm_up_constraint",
 ]
 
 MAX_RESOLUTION = 0.01
@@ -1432,7 +1432,9 @@ def _tabulate_polyline(
     for kind, c, d in pieces:
         if kind == "zone":
             parts.append(
-                sweep_kernel(P, R, poly.vx, poly.vy, poly.slope, phase, c, d, nint(c, d), HERMITE_TOL)
+                sweep_kernel(
+                    P, R, poly.vx, poly.vy, poly.slope, phase, c, d, nint(c, d), HERMITE_TOL
+                )
             )
             continue
         if c not in zone_ends:

@@ -43,6 +43,7 @@ rail (:func:`rail_polyline`, cached per rail object) and reused by every wheel.
 
 from __future__ import annotations
 
+import itertools
 import math
 import weakref
 from typing import NamedTuple
@@ -51,9 +52,16 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from sim_core.constraint_wheel_pieces import PIECE_ARC, PIECE_CHORD, PIECE_HAVERSINE, wheel_pieces
+from sim_core.constraint_wheel_pieces import (
+    PIECE_ARC,
+    PIECE_CHORD,
+    PIECE_HAVERSINE,
+    _piece_of,
+    _rho,
+    _shift,
+    wheel_pieces,
+)
 from sim_core.constraint_wheel_pieces import _drop as _drop_lb
-from sim_core.constraint_wheel_pieces import _piece_of, _rho, _shift
 from sim_core.rail import RailProfile
 from sim_core.wheel import TWO_PI, WheelOutline
 
@@ -140,7 +148,7 @@ def polyline_pieces(wheel: WheelOutline) -> NDArray[np.float64]:
             continue
         m = max(math.ceil((row[_T1] - row[_T0]) / width - 1e-9), 1)
         edges = np.linspace(row[_T0], row[_T1], m + 1)
-        for a, c in zip(edges[:-1], edges[1:], strict=True):
+        for a, c in itertools.pairwise(edges):
             sub = row.copy()
             sub[_T0], sub[_T1] = a, c
             far = max(abs(a - row[_CEN]), abs(c - row[_CEN]))
@@ -246,18 +254,18 @@ def _g_line(
 
 
 @numba.njit(cache=True, inline="always")
-def _slope_T(R: float, psi: float, r1: float, s: float) -> float:
+def _slope_tangent(R: float, psi: float, r1: float, s: float) -> float:
     return s * (1.0 + r1 * math.sin(psi) / R) + r1 * math.cos(psi) / R
 
 
 @numba.njit(cache=True, inline="always")
-def _slope_W(R: float, psi: float, dr: float, s: float) -> float:
+def _slope_wheel_vertex(R: float, psi: float, dr: float, s: float) -> float:
     rho = R + dr
     return s * (1.0 - rho * math.cos(psi) / R) + rho * math.sin(psi) / R
 
 
 @numba.njit(cache=True, inline="always")
-def _slope_V(R: float, psi: float, dr: float, r1: float) -> float:
+def _slope_rail_vertex(R: float, psi: float, dr: float, r1: float) -> float:
     rho = R + dr
     sp = math.sin(psi)
     cp = math.cos(psi)
@@ -359,14 +367,14 @@ def _cell(
     if convex and gp0 > 0.0 and gp1 < 0.0 and plo < phi_:
         G, psi, xd, r1 = _stationary(P, k, sh, R, x, phi, plo, phi_, xj, yj, s)
         if G >= G0 and G >= G1:
-            return G, FT_T, g, j, _slope_T(R, psi, r1, s), xd
+            return G, FT_T, g, j, _slope_tangent(R, psi, r1, s), xd
     if G0 >= G1:
         if tlo == FT_V:
-            return G0, tlo, glo, rlo, _slope_V(R, plo, dr0, r10), xd0
-        return G0, tlo, glo, rlo, _slope_W(R, plo, dr0, s), xd0
+            return G0, tlo, glo, rlo, _slope_rail_vertex(R, plo, dr0, r10), xd0
+        return G0, tlo, glo, rlo, _slope_wheel_vertex(R, plo, dr0, s), xd0
     if thi == FT_V:
-        return G1, thi, ghi, rhi, _slope_V(R, phi_, dr1, r11), xd1
-    return G1, thi, ghi, rhi, _slope_W(R, phi_, dr1, s), xd1
+        return G1, thi, ghi, rhi, _slope_rail_vertex(R, phi_, dr1, r11), xd1
+    return G1, thi, ghi, rhi, _slope_wheel_vertex(R, phi_, dr1, s), xd1
 
 
 @numba.njit(cache=True)
@@ -415,7 +423,7 @@ def _chord_max(
         h = math.sin(0.5 * psi)
         best = vy[bi] + dr * math.cos(psi) - 2.0 * R * h * h
         bt, bg, br = FT_V, g, bi
-        bs = _slope_V(R, psi, dr, r1)
+        bs = _slope_rail_vertex(R, psi, dr, r1)
         bx = x + (R + dr) * math.sin(psi)
     # the chord's ends (not where the window clipped it)
     for end in range(2):
@@ -424,10 +432,10 @@ def _chord_max(
             continue
         xe = xa if end == 0 else xb
         j = _seg_of(vx, xe)
-        G, _, _, xd, dr, _ = _g_line(P, k, sh, R, x, phi, pe, vx[j], vy[j], sl[j])
-        if G > best:
-            best, bt, bg, br = G, FT_W, (g - 1 if end == 0 else g), j
-            bs = _slope_W(R, pe, dr, sl[j])
+        ge, _, _, xd, dr, _ = _g_line(P, k, sh, R, x, phi, pe, vx[j], vy[j], sl[j])
+        if ge > best:
+            best, bt, bg, br = ge, FT_W, (g - 1 if end == 0 else g), j
+            bs = _slope_wheel_vertex(R, pe, dr, sl[j])
             bx = xd
     return best, bt, bg, br, bs, bx
 
@@ -576,7 +584,7 @@ def _feature_eval(
         G, _, _, xd, dr, _ = _g_line(P, k, sh, R, x, phi, psi, vx[r], vy[r], sl[r])
         if xd < vx[r] - 1e-13 or xd > vx[r + 1] + 1e-13:
             return -np.inf, 0.0, xd
-        return G, _slope_W(R, psi, dr, sl[r]), xd
+        return G, _slope_wheel_vertex(R, psi, dr, sl[r]), xd
     lo = P[k, _T0] + sh - phi
     hi = P[k, _T1] + sh - phi
     if t == FT_V:
@@ -587,13 +595,13 @@ def _feature_eval(
             return -np.inf, 0.0, xd
         h = math.sin(0.5 * psi)
         G = vy[r] + dr * math.cos(psi) - 2.0 * R * h * h
-        return G, _slope_V(R, psi, dr, r1), xd
+        return G, _slope_rail_vertex(R, psi, dr, r1), xd
     lo = max(lo, -CLIP)
     hi = min(hi, CLIP)
     G, psi, xd, r1 = _stationary(P, k, sh, R, x, phi, lo, hi, vx[r], vy[r], sl[r])
     if not (lo <= psi <= hi) or xd < vx[r] - 1e-13 or xd > vx[r + 1] + 1e-13:
         return -np.inf, 0.0, xd
-    return G, _slope_T(R, psi, r1, sl[r]), xd
+    return G, _slope_tangent(R, psi, r1, sl[r]), xd
 
 
 @numba.njit(cache=True)
@@ -650,7 +658,7 @@ def sweep_kernel(
     nn = 0
     h0 = (x1 - x0) / nint
     phi0 = phase + x0 / R
-    hint = _piece_of(P, n, phi0, int(math.floor((phi0 - P[0, _T0]) / TWO_PI)) * n)
+    hint = _piece_of(P, n, phi0, int(math.floor((phi0 - P[0, _T0]) / TWO_PI)) * n)  # noqa: RUF046
     for i in range(nint + 1):
         xv = x0 + i * h0 if i < nint else x1
         v, t, g, r, s, xd, g0 = _global(P, n, R, vx, vy, sl, ymax, drg, phase, xv, hint)
@@ -748,9 +756,7 @@ def sweep_kernel(
                 xs = 0.5 * (lo + hi)
                 va, sa, _ = _feature_eval(P, n, R, vx, vy, sl, phase, tA, gA, rA, xs)
                 vb, sb, xdb = _feature_eval(P, n, R, vx, vy, sl, phase, tB, gB, rB, xs)
-                vg, tg, gg, rg, _, _, _ = _global(
-                    P, n, R, vx, vy, sl, ymax, drg, phase, xs, hint
-                )
+                vg, tg, gg, rg, _, _, _ = _global(P, n, R, vx, vy, sl, ymax, drg, phase, xs, hint)
                 top = max(va, vb)
                 isab = (tg == tA and gg == gA and rg == rA) or (tg == tB and gg == gB and rg == rB)
                 valid = va > -np.inf and vb > -np.inf

@@ -30,7 +30,9 @@ from sim_core.wheel_roughness import bundled_measurement, load_wheel_roughness
 R = 0.46
 
 
-def rough_rail(length: float = 0.4, dx: float = 5e-4, rms: float = 1e-5, seed: int = 3) -> RailProfile:
+def rough_rail(
+    length: float = 0.4, dx: float = 5e-4, rms: float = 1e-5, seed: int = 3
+) -> RailProfile:
     k = np.geomspace(2 * np.pi / 1.0, 0.99 * np.pi / dx, 200)
     r = random_roughness(length, dx, k, power_law_psd(k, 1.0), seed)
     return RailProfile.sampled(r.x - 0.5 * length, r.y * (rms / np.std(r.y)))
@@ -48,7 +50,9 @@ def file_rail() -> RailProfile:
 def dented() -> RailProfile:
     base = RailProfile.cosine(5e-6, 0.04)
     xd = np.linspace(-0.05, 0.05, 201)
-    depth = 3e-5 * np.exp(-(((xd - 0.01) / 0.004) ** 2)) + 2e-5 * np.exp(-(((xd + 0.02) / 0.002) ** 2))
+    depth = 3e-5 * np.exp(-(((xd - 0.01) / 0.004) ** 2)) + 2e-5 * np.exp(
+        -(((xd + 0.02) / 0.002) ** 2)
+    )
     return dented_rail(base, xd, depth, -0.2, 0.2)
 
 
@@ -70,12 +74,12 @@ def reference(
     for n, xc in enumerate(x):
         phi = phase + xc / Rn
 
-        def G(psi: NDArray[np.float64], xc: float = xc, phi: float = phi) -> NDArray[np.float64]:
+        def obj(psi: NDArray[np.float64], xc: float = xc, phi: float = phi) -> NDArray[np.float64]:
             rho = wheel.radius_at(psi + phi)
             return rail.height(xc + rho * np.sin(psi)) + rho * np.cos(psi) - Rn
 
         grid = np.linspace(-0.1, 0.1, 40001)
-        g = G(grid)
+        g = obj(grid)
         cands = [g.max()]
         # corners of the wheel
         if wheel.kind == "ideal_flat":
@@ -85,27 +89,25 @@ def reference(
         else:
             th = np.empty(0)
         t = (th - phi + np.pi) % (2 * np.pi) - np.pi
-        cands.append(G(t[np.abs(t) < 0.1]).max(initial=-np.inf))
+        cands.append(obj(t[np.abs(t) < 0.1]).max(initial=-np.inf))
         # rail vertices: x + ρ(ψ + φ) sin ψ = x_i
         xi = rail.x[np.abs(rail.x - xc) < 0.1 * Rn]
         psi = np.arcsin((xi - xc) / Rn)
         for _ in range(8):
             f = xc + wheel.radius_at(psi + phi) * np.sin(psi) - xi
-            df = (
-                xc + wheel.radius_at(psi + phi + 1e-9) * np.sin(psi + 1e-9) - xi - f
-            ) / 1e-9
+            df = (xc + wheel.radius_at(psi + phi + 1e-9) * np.sin(psi + 1e-9) - xi - f) / 1e-9
             psi = psi - f / df
-        cands.append(G(psi).max(initial=-np.inf))
+        cands.append(obj(psi).max(initial=-np.inf))
         # smooth maxima: parabolas through the best grid points, twice
         for i in np.argsort(g)[-5:]:
             p, h = grid[i], grid[1] - grid[0]
             for _ in range(3):
-                gm, g0, gp = G(np.array([p - h, p, p + h]))
+                gm, g0, gp = obj(np.array([p - h, p, p + h]))
                 den = gp - 2 * g0 + gm
                 if den < 0:
                     p = p - 0.5 * h * (gp - gm) / den
                 h *= 0.01
-            cands.append(G(np.array([p]))[0])
+            cands.append(obj(np.array([p]))[0])
         out[n] = max(cands)
     return out
 
