@@ -84,6 +84,10 @@ MAX_RAIL_SLOPE = 0.2
 CLIP = 0.5
 """|ψ| bound (rad) of the cells of the restricted solves (x_D monotone in ψ inside)."""
 
+HAVERSINE_SUBPIECES = 128
+"""A rounded flat's haversine is cut into this many sub-pieces, each with its own largest
+r - R: the bound of the global solve then skips the rail segments that cannot reach the flat."""
+
 
 class RailPolyline(NamedTuple):
     """The wheel-independent preprocessing of a polyline rail."""
@@ -136,12 +140,12 @@ def polyline_pieces(wheel: WheelOutline) -> NDArray[np.float64]:
             rows[-1][_T1] = row[_T1]
         else:
             rows.append(row.copy())
-    # a rounded flat's haversine in sub-pieces of at most 1/16 of the flat, each with its
-    # own largest r - R (at its end farther from the centre): the bound of the global solve
-    # then skips most of the flat when it faces the rail
+    # a rounded flat's haversine in sub-pieces (HAVERSINE_SUBPIECES over the flat), each with
+    # its own largest r - R (at its end farther from the centre): the bound of the global
+    # solve then skips most of the flat when it faces the rail
     out: list[NDArray[np.float64]] = []
     R = wheel.nominal_radius
-    width = 2.0 * wheel.flat_half_angle / 16.0
+    width = 2.0 * wheel.flat_half_angle / HAVERSINE_SUBPIECES
     for row in rows:
         if row[_KIND] != PIECE_HAVERSINE:
             out.append(row)

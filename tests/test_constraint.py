@@ -191,7 +191,8 @@ def test_round_wheel_properties(heights: list[float], spacing: float, offset: fl
     lifted = RailProfile.sampled(x, np.array(heights) + offset)
     t2 = tabulate_constraint(WheelOutline.round(R), lifted, 0.0, float(x[-1]))
     assert np.abs(t2.evaluate(xq) - yk - offset).max() < 1e-12
-    assert t2.kinks.shape == t.kinks.shape and np.allclose(t2.kinks, t.kinks, rtol=0, atol=1e-12)
+    # a kink where two nearly parallel pieces cross (a 1e-9 m bump) is located to ~1e-11 m only
+    assert t2.kinks.shape == t.kinks.shape and np.allclose(t2.kinks, t.kinks, rtol=0, atol=1e-9)
 
 
 # ------------------------------------------------------------------------------ options
