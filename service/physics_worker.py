@@ -28,10 +28,10 @@ import time
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 from schemas.diagnosis import Diagnosis, MeasuredPassage
-from schemas.messages import PassageResult, RailState, WheelPassage
+from schemas.messages import PassageResult, PassageSeries, RailState, WheelPassage
 from schemas.site import SiteConfig
 
 if TYPE_CHECKING:
@@ -74,6 +74,25 @@ class DiagnosisOutcome:
     fitted: list[float]
     x: list[float]
     impacts_x: list[float]
+
+
+Series = tuple[bytes, bytes]
+"""The force and the indentation ``PassageSeries`` of a passage, as JSON (fast pacing)."""
+
+ARRAYS = ("x", "force", "indentation", "y_c", "y_ck")
+
+
+def series_json(r: PassageResult, quantity: Literal["force", "indentation"], first: int,
+                last: int, chunk: int, chunks: int) -> bytes:
+    """Samples ``first:last`` of one quantity of ``r`` as a ``PassageSeries`` (JSON)."""
+    values = r.force if quantity == "force" else r.indentation
+    msg = PassageSeries.model_construct(
+        site_id=r.site_id, passage_id=r.passage_id, quantity=quantity,
+        unit="N" if quantity == "force" else "m", sample_rate=r.sample_rate,
+        t_start=r.t_start, speed=r.speed, chunk=chunk, chunks=chunks, first_index=first,
+        samples=len(r.x), x=r.x[first:last], values=values[first:last],
+    )
+    return msg.model_dump_json().encode()
 
 
 def make_physics(kind: str, site: SiteConfig) -> Any:
@@ -135,7 +154,13 @@ def _child_main(site: SiteConfig, kind: str, conn: Connection, snapshot: Any) ->
                 dented = None
                 if result.summary.max_dent > 0.0 and hasattr(physics, "rail_snapshot"):
                     dented = (physics.rail_snapshot(), physics.rail_state())
-                conn.send(("ok", result, data, dented))
+                series: Series | None = None
+                if msg[2]:  # the series too; the result crosses without its arrays (its JSON has them)
+                    n = len(result.x)
+                    series = (series_json(result, "force", 0, n, 0, 1),
+                              series_json(result, "indentation", 0, n, 0, 1))
+                    result = result.model_copy(update={key: [] for key in ARRAYS})
+                conn.send(("ok", result, data, dented, series))
             elif op == "diagnose":
                 if diagnoser is None:
                     from service.diagnosis import Diagnoser
@@ -260,15 +285,22 @@ class ProcessPhysics:
 
     def simulate_json(self, passage: WheelPassage) -> tuple[PassageResult, bytes]:
         """The result of ``passage`` and its JSON (made in the worker)."""
-        _, result, data, dented = self._call(f"passage {passage.passage_id}",
-                                             ("simulate", passage))
+        result, data, _ = self.simulate_parts(passage, light=False)
+        return result, data
+
+    def simulate_parts(self, passage: WheelPassage,
+                       light: bool) -> tuple[PassageResult, bytes, Series | None]:
+        """The result, its JSON and, when ``light``, the series' JSON with a result whose
+        arrays are empty (less to send across and to decode: the JSON is complete)."""
+        _, result, data, dented, series = self._call(f"passage {passage.passage_id}",
+                                                     ("simulate", passage, light))
         self._done += 1
         if dented is not None:  # a plastic site's new rail: a restarted worker goes on from it
             self._snapshot, self._state = dented
         elif self._snapshot is not None:
             profile, revision, _ = self._snapshot
             self._snapshot = (profile, revision, self._done)
-        return result, data
+        return result, data, series
 
     def simulate(self, passage: WheelPassage) -> PassageResult:
         return self.simulate_json(passage)[0]
@@ -357,18 +389,20 @@ class PhysicsPool:
         finally:
             self._idle.put(worker)
 
-    def submit(self, passage: WheelPassage) -> Future[tuple[PassageResult, bytes, RailState]]:
-        """Simulate ``passage`` on the next free worker; the future holds the result, its JSON
-        and the rail right after it (a plastic site's dents as this passage left them)."""
+    def submit(self, passage: WheelPassage, light: bool = False,
+               ) -> Future[tuple[PassageResult, bytes, RailState, Series | None]]:
+        """Simulate ``passage`` on the next free worker; the future holds the result, its JSON,
+        the rail right after it (a plastic site's dents as this passage left them) and, when
+        ``light``, the series (``ProcessPhysics.simulate_parts``)."""
 
-        def run(w: ProcessPhysics) -> tuple[PassageResult, bytes, RailState]:
-            result, data = w.simulate_json(passage)
-            return result, data, w.rail_state()
+        def run(w: ProcessPhysics) -> tuple[PassageResult, bytes, RailState, Series | None]:
+            result, data, series = w.simulate_parts(passage, light)
+            return result, data, w.rail_state(), series
 
         return self._executor.submit(self._with_worker, run)
 
     def simulate_json(self, passage: WheelPassage) -> tuple[PassageResult, bytes]:
-        result, data, _ = self.submit(passage).result()
+        result, data, _, _ = self.submit(passage).result()
         return result, data
 
     def simulate(self, passage: WheelPassage) -> PassageResult:

@@ -103,7 +103,10 @@ class Recorder:
             self._queue.put(_Message(topic, model, data, log_time_ns))
 
     def passage(self, result: PassageResult, data: bytes | None = None) -> None:
+        """``data``, when given, is the whole result (``result`` may lack its arrays)."""
         if self.rerun is not None:
+            if data is not None and not result.x:
+                result = PassageResult.model_validate_json(data)
             self._queue.put(_Passage(result))
 
     def dent(self, passage_id: str, state: RailState) -> None:

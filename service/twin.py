@@ -66,8 +66,10 @@ from service.physics_worker import (
     BudgetExceededError,
     DiagnosisOutcome,
     MeasurementRefusedError,
+    Series,
     WorkerCrashedError,
     diagnose_locally,
+    series_json,
 )
 from service.recorder import RecorderFront
 
@@ -412,15 +414,16 @@ class Twin:
     def _simulate(self, item: Inbound, passage: WheelPassage) -> None:
         if self._pool is not None:  # published in order by the publisher thread
             self._inflight.acquire()
-            self._ordered.put((item, passage, self._pool.submit(passage)))
+            light = self.pace == "fast"  # the worker makes the series' JSON too
+            self._ordered.put((item, passage, self._pool.submit(passage, light)))
             return
 
-        def run() -> tuple[PassageResult, bytes | None, RailState | None]:
+        def run() -> tuple[PassageResult, bytes | None, RailState | None, Series | None]:
             simulate_json = getattr(self.physics, "simulate_json", None)
             if simulate_json is not None:
                 result, data = simulate_json(passage)
-                return result, data, None
-            return self.physics.simulate(passage), None, None
+                return result, data, None, None
+            return self.physics.simulate(passage), None, None, None
 
         self._finish(item, passage, run)
 
@@ -446,10 +449,11 @@ class Twin:
                 self._ordered.task_done()
 
     def _finish(self, item: Inbound, passage: WheelPassage,
-                run: Callable[[], tuple[PassageResult, bytes | None, RailState | None]]) -> None:
+                run: Callable[[], tuple[PassageResult, bytes | None, RailState | None,
+                                        Series | None]]) -> None:
         """Wait for the passage's simulation (``run``) and publish its result or error."""
         try:
-            result, result_data, rail_after = run()
+            result, result_data, rail_after, series = run()
         except (BudgetExceededError, WorkerCrashedError) as exc:
             self._publish_error(ServiceError(
                 site_id=self.site.site_id, kind="simulation_failed", message=str(exc),
@@ -464,7 +468,7 @@ class Twin:
                 received_at=item.received_ns / 1e9,
             ))
             return
-        result_data = self._publish_result(result, item.received_mono, result_data)
+        result_data = self._publish_result(result, item.received_mono, result_data, series)
         self.passages_done += 1
         if self.recorder is not None:
             self.recorder.passage(result, result_data)
@@ -600,22 +604,23 @@ class Twin:
 
     def _series(self, r: PassageResult, quantity: Literal["force", "indentation"],
                 first: int, last: int, chunk: int, chunks: int) -> bytes:
-        values = r.force if quantity == "force" else r.indentation
-        msg = PassageSeries.model_construct(
-            site_id=r.site_id, passage_id=r.passage_id, quantity=quantity,
-            unit="N" if quantity == "force" else "m", sample_rate=r.sample_rate,
-            t_start=r.t_start, speed=r.speed, chunk=chunk, chunks=chunks, first_index=first,
-            samples=len(r.x), x=r.x[first:last], values=values[first:last],
-        )
-        return msg.model_dump_json().encode()
+        return series_json(r, quantity, first, last, chunk, chunks)
 
     def _publish_result(self, r: PassageResult, received_mono: float,
-                        result_data: bytes | None = None) -> bytes:
-        """Publish (or schedule) the series and the result; returns the result's JSON."""
+                        result_data: bytes | None = None, series: Series | None = None) -> bytes:
+        """Publish (or schedule) the series and the result; returns the result's JSON.
+
+        ``series``: the force and indentation series' JSON made by the worker (fast pacing);
+        then ``r`` may come without its arrays and ``result_data`` is the whole result."""
         k = self.keys
         pid = r.passage_id
         if result_data is None:
             result_data = r.model_dump_json().encode()
+        if series is not None:
+            self._put(k.force(pid), f"{k.prefix}/force", PassageSeries, series[0])
+            self._put(k.indentation(pid), f"{k.prefix}/indentation", PassageSeries, series[1])
+            self._put(k.result(pid), f"{k.prefix}/result", PassageResult, result_data)
+            return result_data
         if self.pace == "fast":
             n = len(r.x)
             self._put(k.force(pid), f"{k.prefix}/force", PassageSeries,
