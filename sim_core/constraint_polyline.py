@@ -84,7 +84,7 @@ MAX_RAIL_SLOPE = 0.2
 CLIP = 0.5
 """|ψ| bound (rad) of the cells of the restricted solves (x_D monotone in ψ inside)."""
 
-HAVERSINE_SUBPIECES = 128
+HAVERSINE_SUBPIECES = 16
 """A rounded flat's haversine is cut into this many sub-pieces, each with its own largest
 r - R: the bound of the global solve then skips the rail segments that cannot reach the flat."""
 
@@ -482,7 +482,9 @@ def _global(
         if not a < b:
             continue
         pmin = 0.0 if a <= 0.0 <= b else min(abs(a), abs(b))
-        top = max(P[k, _DRMAX], 0.0)
+        # the largest (r - R)·cos ψ on the piece (a flat's sub-piece lies below the circle)
+        dm = P[k, _DRMAX]
+        top = dm if dm >= 0.0 else dm * math.cos(psw)
         if ymax + top - _drop_lb(pmin, R) < best:
             continue
         if int(P[k, _KIND]) == PIECE_CHORD:
