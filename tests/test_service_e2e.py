@@ -172,7 +172,7 @@ def replayed_run(first_run: Run, tmp_path_factory: pytest.TempPathFactory) -> Ru
         sub = session.declare_subscriber(KEYS.all_outputs, collector)
         replay = subprocess.run(
             [sys.executable, "-m", "service.replay_cli", *map(str, first_run.service.mcap_files),
-             "--connect", endpoint_of(svc), "--rate", "4"],
+             "--connect", endpoint_of(svc), "--rate", "4", "--include-rejected"],
             capture_output=True, text=True, timeout=TIMEOUT, cwd=ROOT,
         )
         assert replay.returncode == 0, replay.stderr

@@ -122,6 +122,7 @@ def deployment(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Deployment]
         site_file, listen=twin_endpoint, recordings=tmp / "recordings",
         extra_args=("--zenoh-config", str(shipped_config("twin.json5", certs, tmp)),
                     "--no-rerun"),
+        start_timeout=180.0,  # ~5 s warm-up, unless numba recompiles on a loaded machine
     )
     with svc:
         consumer_cfg = build_config(
