@@ -24,6 +24,7 @@ from schemas.scenario import FlatOutline
 from schemas.site import SiteConfig
 from service.feeder import declare_passage_publisher, wait_matching
 from service.keyspace import SiteKeys
+from service.limits import passage_samples
 from service.physics_worker import BudgetExceededError, ProcessPhysics
 from service.service_process import ServiceProcess
 from service.zenoh_session import build_config, free_tcp_endpoint
@@ -204,3 +205,51 @@ def test_port_taken_is_one_line(tmp_path: Path) -> None:
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and "Address already in use" in lines[0], proc.stderr
     assert "Traceback" not in proc.stderr and "/root/" not in lines[0]
+
+
+@pytest.mark.parametrize("pace", ["fast", "realtime"])
+def test_two_workers_publish_in_order(tmp_path: Path, pace: str) -> None:
+    """Two workers on an elastic site: results in the passages' order (fast pacing: slow and
+    quick wheels alternate, so a later passage is often simulated first)."""
+    site = tmp_path / "fast.toml"
+    site.write_text(SLOW_SITE.replace('length = 60.0', 'length = 3.0').replace(
+        'kind = "file"\npath = "rail.csv"', 'kind = "flat"'))
+    keys = SiteKeys("slow")
+    endpoint = free_tcp_endpoint()
+    order: list[str] = []
+    chunks: dict[str, int] = {}
+    lock = threading.Lock()
+
+    def on_output(sample: zenoh.Sample) -> None:
+        key = str(sample.key_expr)
+        kind = keys.kind_of(key)
+        with lock:
+            if kind == "result":
+                order.append(key.rsplit("/", 1)[-1])
+            elif kind == "force":
+                pid = key.rsplit("/", 1)[-1]
+                chunks[pid] = chunks.get(pid, 0) + 1
+
+    ids = [f"w{i:02d}" for i in range(16)]
+    extra: tuple[str, ...] = ("--workers", "2", "--pace", pace, "--no-mcap", "--no-rerun")
+    if pace == "realtime":  # the result is due when the wheel leaves: same speed, in order
+        extra += ("--physics", "stub", "--chunk-period", "0.02")
+    svc = ServiceProcess(site, listen=endpoint, recordings=tmp_path / "rec", extra_args=extra)
+    with svc, zenoh.open(build_config(connect=[endpoint])) as session:
+        assert "worker processes" in svc.output, svc.output
+        sub = session.declare_subscriber(keys.all_outputs, on_output)
+        pub = declare_passage_publisher(session, keys)
+        assert wait_matching(pub, 20.0)
+        for i, pid in enumerate(ids):
+            speed = 10.0 if (i % 2 == 0 or pace == "realtime") else 80.0
+            pub.put(WHEEL.model_copy(update={"passage_id": pid, "speed": speed})
+                    .model_dump_json())
+        deadline = time.monotonic() + 60.0
+        while time.monotonic() < deadline and len(order) < len(ids):
+            time.sleep(0.02)
+        sub.undeclare()
+        pub.undeclare()
+    assert order == ids, svc.output
+    samples = passage_samples(3.0, 1000.0, 10.0)  # 0.3 s on the site at 1 kHz: 301
+    expected_chunks = math.ceil(samples / 20) if pace == "realtime" else 1  # 20 ms chunks
+    assert chunks["w00"] == expected_chunks
