@@ -26,6 +26,13 @@ How it is solved (all compiled with numba):
   smooth formula each, closed forms and Newton per piece, the changes of piece
   located as roots of closed forms). ``method="general"`` forces the ψ-search
   below instead (for cross-checks).
+- *An out-of-round wheel on a sampled (measured, file, dented) rail*: the cell sweep of
+  :mod:`sim_core.constraint_polyline` (each wheel piece against each rail segment and
+  vertex: closed forms, or Newton on a unimodal piece; changes of contact located between
+  nodes) inside the stretches where the out-of-roundness can reach the contact, and the
+  round wheel's closed form below elsewhere, cut from a table of the whole rail that is
+  made once per rail and radius and kept (wheel-independent). ``method="general"`` forces
+  the ψ-search.
 - *Any other pair*: a global search over a ψ grid finer than both inputs'
   features, in a window bounded by the height range (a wheel point at ψ can
   only win if ``rail max + wheel bulge - 2R·sin²(ψ/2)`` reaches the value at
