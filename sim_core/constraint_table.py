@@ -33,6 +33,8 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+_NONE = np.empty(0)
+
 
 @dataclass(frozen=True)
 class ConstraintTable:
@@ -94,8 +96,15 @@ class ConstraintTable:
         """y_C^k at the positions ``xq`` (vectorised)."""
         xq = np.asarray(xq, dtype=np.float64)
         out = np.empty(xq.shape)
-        evaluate_many(
-            self.x, self.y, self.slope_left, self.slope_right, self.period, xq.ravel(), out.ravel()
+        _evaluate_many(
+            self.x,
+            self.y,
+            self.slope_left,
+            self.slope_right,
+            self.period,
+            xq.ravel(),
+            out.ravel(),
+            _NONE,
         )
         return out
 
@@ -103,8 +112,15 @@ class ConstraintTable:
         """dy_C^k/dx at ``xq`` (right-sided at kinks)."""
         xq = np.asarray(xq, dtype=np.float64)
         out = np.empty(xq.shape)
-        slope_many(
-            self.x, self.y, self.slope_left, self.slope_right, self.period, xq.ravel(), out.ravel()
+        _evaluate_many(
+            self.x,
+            self.y,
+            self.slope_left,
+            self.slope_right,
+            self.period,
+            xq.ravel(),
+            _NONE,
+            out.ravel(),
         )
         return out
 
@@ -171,7 +187,7 @@ def locate(x: NDArray[np.float64], xv: float, hint: int) -> int:
     return lo
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def table_eval(
     x: NDArray[np.float64],
     y: NDArray[np.float64],
@@ -181,7 +197,11 @@ def table_eval(
     xv: float,
     hint: int,
 ) -> tuple[float, float, int]:
-    """(y_C^k, slope, index) at position ``xv``; ``hint`` speeds up nearby look-ups."""
+    """(y_C^k, slope, index) at position ``xv``; ``hint`` speeds up nearby look-ups.
+
+    The one Hermite look-up. Inlined: a caller that drops the slope does not
+    pay for it (the compiler removes it), so the right-hand side uses it too.
+    """
     xw, _ = wrap(xv, x[0], period)
     n = x.size
     if xw <= x[0]:
@@ -195,85 +215,70 @@ def table_eval(
     i = locate(x, xw, hint)
     h = x[i + 1] - x[i]
     t = (xw - x[i]) / h
-    t2 = t * t
-    t3 = t2 * t
+    u = 1.0 - t
     m0 = sr[i] * h
     m1 = sl[i + 1] * h
-    val = (
-        (2 * t3 - 3 * t2 + 1) * y[i]
-        + (t3 - 2 * t2 + t) * m0
-        + (-2 * t3 + 3 * t2) * y[i + 1]
-        + (t3 - t2) * m1
-    )
+    # Hermite basis in factored form
+    val = u * u * ((1.0 + 2.0 * t) * y[i] + t * m0) + t * t * ((3.0 - 2.0 * t) * y[i + 1] - u * m1)
     der = (
-        (6 * t2 - 6 * t) * y[i]
-        + (3 * t2 - 4 * t + 1) * m0
-        + (-6 * t2 + 6 * t) * y[i + 1]
-        + (3 * t2 - 2 * t) * m1
+        6.0 * t * u * (y[i + 1] - y[i]) + u * (1.0 - 3.0 * t) * m0 + t * (3.0 * t - 2.0) * m1
     ) / h
     return val, der, i
 
 
-@numba.njit(cache=True, inline="always")
-def table_value(
+@numba.njit(cache=True)
+def _evaluate_many(
     x: NDArray[np.float64],
     y: NDArray[np.float64],
     sl: NDArray[np.float64],
     sr: NDArray[np.float64],
+    period: float,
+    xq: NDArray[np.float64],
+    values: NDArray[np.float64],
+    slopes: NDArray[np.float64],
+) -> None:
+    """y_C^k and its slope at every ``xq`` (either output may be empty: not wanted)."""
+    hint = 0
+    for k in range(xq.size):
+        v, d, hint = table_eval(x, y, sl, sr, period, xq[k], hint)
+        if values.size:
+            values[k] = v
+        if slopes.size:
+            slopes[k] = d
+
+
+@numba.njit(cache=True, inline="always")
+def linear_at(
+    x: NDArray[np.float64],
+    v: NDArray[np.float64],
     period: float,
     xv: float,
     hint: int,
-) -> tuple[float, int]:
-    """(y_C^k, index) at ``xv``: ``table_eval`` without the slope, for the hot loop."""
-    xw = xv
-    if period > 0.0:
-        xw = xv - np.floor((xv - x[0]) / period) * period
+    follow: bool,
+) -> tuple[float, float, float, int]:
+    """(value, slope, shift, index) of node values ``v`` interpolated linearly at ``xv``.
+
+    The one look-up of per-node quantities (the stiffness scale, the contact
+    point). ``xv`` wraps into a periodic table; ``shift`` is what the wrap took
+    off (add it back to a position). Outside the nodes the value is held
+    (``follow`` False, slope 0) or continued with slope 1 (``follow`` True: the
+    contact point follows the wheel).
+    """
+    xw, shift = wrap(xv, x[0], period)
     n = x.size
     if xw <= x[0]:
-        return y[0], 0
+        if follow:
+            return v[0] + (xw - x[0]), 1.0, shift, 0
+        return v[0], 0.0, shift, 0
     if xw >= x[n - 1]:
-        return y[n - 1], n - 2
+        if follow:
+            return v[n - 1] + (xw - x[n - 1]), 1.0, shift, n - 2
+        return v[n - 1], 0.0, shift, n - 2
     i = locate(x, xw, hint)
-    h = x[i + 1] - x[i]
-    t = (xw - x[i]) / h
-    u = 1.0 - t
-    # Hermite basis in factored form
-    val = u * u * ((1.0 + 2.0 * t) * y[i] + t * h * sr[i]) + t * t * (
-        (3.0 - 2.0 * t) * y[i + 1] - u * h * sl[i + 1]
-    )
-    return val, i
-
-
-@numba.njit(cache=True)
-def evaluate_many(
-    x: NDArray[np.float64],
-    y: NDArray[np.float64],
-    sl: NDArray[np.float64],
-    sr: NDArray[np.float64],
-    period: float,
-    xq: NDArray[np.float64],
-    out: NDArray[np.float64],
-) -> None:
-    hint = 0
-    for k in range(xq.size):
-        v, _, hint = table_eval(x, y, sl, sr, period, xq[k], hint)
-        out[k] = v
-
-
-@numba.njit(cache=True)
-def slope_many(
-    x: NDArray[np.float64],
-    y: NDArray[np.float64],
-    sl: NDArray[np.float64],
-    sr: NDArray[np.float64],
-    period: float,
-    xq: NDArray[np.float64],
-    out: NDArray[np.float64],
-) -> None:
-    hint = 0
-    for k in range(xq.size):
-        _, d, hint = table_eval(x, y, sl, sr, period, xq[k], hint)
-        out[k] = d
+    dx = x[i + 1] - x[i]
+    u = (xw - x[i]) / dx
+    dv = v[i + 1] - v[i]
+    return v[i] + u * dv, dv / dx, shift, i
 
 
 @numba.njit(cache=True)
@@ -287,15 +292,6 @@ def contact_many(
     """Contact points at ``xq``: linear between nodes (a wheel pivoting on a corner keeps
     x_D fixed, which the nodes on either side share), following the wheel outside."""
     hint = 0
-    n = x.size
     for k in range(xq.size):
-        xw, shift = wrap(xq[k], x[0], period)
-        if xw <= x[0]:
-            out[k] = cx[0] + shift + (xw - x[0])
-            continue
-        if xw >= x[n - 1]:
-            out[k] = cx[n - 1] + shift + (xw - x[n - 1])
-            continue
-        hint = locate(x, xw, hint)
-        u = (xw - x[hint]) / (x[hint + 1] - x[hint])
-        out[k] = cx[hint] + u * (cx[hint + 1] - cx[hint]) + shift
+        xd, _, shift, hint = linear_at(x, cx, period, xq[k], hint, True)
+        out[k] = xd + shift

@@ -170,6 +170,24 @@ def mode_force(
     return f_y
 
 
+@numba.njit(cache=True, inline="always")
+def mode_stiffness(
+    delta: float, plastic: bool, law: int, c: float, f_y: float, d_y: float, theta_y: float
+) -> float:
+    """dF/dδ of the branch ``mode_force`` evaluates (0 for δ <= 0 and on the plateau)."""
+    if delta <= 0.0:
+        return 0.0
+    if not plastic:
+        return 1.5 * c * math.sqrt(delta)
+    if law == JOHNSON:
+        s = 2.0 * delta / d_y - 1.0
+        if s < 1e-300:
+            s = 1e-300
+        th3 = 3.0 * theta_y
+        return f_y * (2.0 / d_y) * (1.0 + math.log(s) / th3 + 1.0 / th3)
+    return 0.0
+
+
 @numba.njit(cache=True)
 def force_array(
     delta: NDArray[np.float64], law: int, c: float, f_y: float, d_y: float, theta_y: float

@@ -31,9 +31,31 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from sim_core import integrator as integ
 from sim_core.constraint_table import ConstraintTable
 from sim_core.contact_laws import ContactLaw, ContactModel
+from sim_core.integrate_types import (
+    MODE_NAMES,
+    S_CONTACT,
+    S_DELTA,
+    S_FORCE,
+    S_T,
+    S_VC,
+    S_VM,
+    S_X,
+    S_YC,
+    S_YCK,
+    S_YM,
+    STEP_TOO_SMALL,
+    TOO_MANY_STEPS,
+    X_MIN_FORCE,
+    X_PEAK_DELTA,
+    X_PEAK_FORCE,
+    X_T_FLIGHT,
+    Event,
+    Params,
+    table_of,
+)
+from sim_core.integrator import integrate
 
 RESOLUTION_STEP = 3.0
 """A step in contact advances the wheel by at most this many ``table.resolution``: the
@@ -47,8 +69,8 @@ DENT_SPACING = 2e-5
 YIELD_HYSTERESIS = 1e-14
 """Width (m) of the elastic/plastic switch's hysteresis (MODEL.md §5)."""
 
-TRANSITION_KINDS = ("loss", "contact", "yield", "unyield")
-"""Names of the transition codes 0..3 the integrator reports."""
+TRANSITION_KINDS = tuple(e.label for e in Event)
+"""Names of the transition codes 0..3 the integrator reports (``integrate_types.Event``)."""
 
 
 @dataclass(frozen=True)
@@ -264,86 +286,84 @@ def simulate_passage(
     )
     if not compliant and (init.y_m != 0.0 or init.v_m != 0.0):
         raise ValueError("initial y_m/v_m given for a rigid foundation")
-    par = np.zeros(integ.N_PARAMS)
-    par[integ.P_LAW] = float(int(law))
-    par[integ.P_C] = spec.contact.coefficient
-    par[integ.P_FY] = spec.contact.yield_force
-    par[integ.P_DY] = spec.contact.yield_indentation
-    par[integ.P_THETA] = spec.contact.johnson_coefficient
-    par[integ.P_MASS] = spec.mass
-    par[integ.P_LOAD] = spec.load
-    par[integ.P_FMASS] = spec.foundation.mass if compliant else 1.0
-    par[integ.P_FSTIFF] = spec.foundation.stiffness if compliant else 0.0
-    par[integ.P_FDAMP] = spec.foundation.damping if compliant else 0.0
-    par[integ.P_SPEED] = v
-    par[integ.P_COMPLIANT] = 1.0 if compliant else 0.0
-    par[integ.P_HYST] = YIELD_HYSTERESIS
-    par[integ.P_RTOL] = spec.rtol
-    par[integ.P_ATOL_Y] = spec.rtol * d0
-    par[integ.P_ATOL_V] = spec.rtol * d0 * omega0
-    par[integ.P_HMAX_CONTACT] = RESOLUTION_STEP * table.resolution / v
-    par[integ.P_C2MAX] = _second_derivative_bound(table)
-    par[integ.P_DENT_DX] = dent_spacing
-    par[integ.P_TRACK_DENTS] = 1.0 if track_dents else 0.0
+    par = Params.build(
+        law=int(law),
+        c=spec.contact.coefficient,
+        f_y=spec.contact.yield_force,
+        d_y=spec.contact.yield_indentation,
+        theta=spec.contact.johnson_coefficient,
+        hyst=YIELD_HYSTERESIS,
+        mass=spec.mass,
+        load=spec.load,
+        speed=v,
+        compliant=compliant,
+        f_mass=spec.foundation.mass if compliant else 1.0,
+        f_stiff=spec.foundation.stiffness if compliant else 0.0,
+        f_damp=spec.foundation.damping if compliant else 0.0,
+        rtol=spec.rtol,
+        atol_y=spec.rtol * d0,
+        atol_v=spec.rtol * d0 * omega0,
+        hmax_contact=RESOLUTION_STEP * table.resolution / v,
+        c2max=_second_derivative_bound(table),
+        track_dents=track_dents,
+        dent_dx=dent_spacing,
+    )
     n_samples = math.floor(spec.duration * spec.sample_rate * (1 + 1e-12)) + 1
     # the last sample may round past t1 by an ulp: it is t1 (else the integrator, which stops
     # at t1, would leave it unfilled as a row of zeros)
     sample_t = np.minimum(t0 + np.arange(n_samples) / spec.sample_rate, t1)
     kinks = table.kinks_between(v * t0 - 1e-12, v * t1 + table.resolution)
-    status, samples, tr_t, tr_k, extrema, dents, stats, _ = integ.integrate(
-        table.x,
-        table.y,
-        table.slope_left,
-        table.slope_right,
-        table.contact_x,
-        table.stiffness_scale,
-        float(table.period),
+    res = integrate(
+        table_of(table),
         np.ascontiguousarray(kinks, dtype=np.float64),
         par,
-        t0,
-        t1,
+        float(t0),
+        float(t1),
         y0,
         sample_t,
-        max_steps,
+        int(max_steps),
     )
-    if status == integ.STEP_TOO_SMALL:
+    if res.status == STEP_TOO_SMALL:
         raise IntegrationError(
-            f"the step size fell below 1e-15 s at t = {extrema[3]:.9g} s (x = {v * extrema[3]:.6g} m, "
-            f"mode {('flight', 'elastic', 'plastic')[int(extrema[4])]}): the solution is not resolvable there"
+            f"the step size fell below 1e-15 s at t = {res.t_end:.9g} s (x = {v * res.t_end:.6g} m, "
+            f"mode {MODE_NAMES[res.mode_end]}): the solution is not resolvable there"
         )
-    if status == integ.TOO_MANY_STEPS:
+    if res.status == TOO_MANY_STEPS:
         raise IntegrationError(f"more than {max_steps} steps: raise max_steps or relax rtol")
-    s = samples
-    peak_delta, _, t_flight = (float(e) for e in extrema[:3])
-    peak_force, least_force = float(extrema[5]), float(extrema[6])
+    ext = res.extrema
+    peak_delta = float(ext[X_PEAK_DELTA])
+    t_flight = float(ext[X_T_FLIGHT])
+    peak_force, least_force = float(ext[X_PEAK_FORCE]), float(ext[X_MIN_FORCE])
     transitions = tuple(
         Transition(float(tt), TRANSITION_KINDS[int(kk)], float(tt * v))
-        for tt, kk in zip(tr_t, tr_k, strict=True)
+        for tt, kk in res.transitions
     )
     ever_lost = any(tr.kind == "loss" for tr in transitions) or t_flight > 0.0
     min_force = 0.0 if ever_lost else least_force
+    dents = res.dents
     if dents.shape[0] and law == ContactLaw.HERTZ_PLASTIC:
         dent_t, dent_x, dent_d = dents[:, 0], dents[:, 1], dents[:, 2]
     else:
         dent_t = dent_x = dent_d = np.empty(0)
+    s = res.samples
     return PassageOutput(
-        t=s[:, integ.S_T],
-        x=s[:, integ.S_X],
-        y_c=s[:, integ.S_YC],
-        v_c=s[:, integ.S_VC],
-        y_ck=s[:, integ.S_YCK],
-        y_m=s[:, integ.S_YM],
-        v_m=s[:, integ.S_VM],
-        delta=s[:, integ.S_DELTA],
-        force=s[:, integ.S_FORCE],
-        in_contact=s[:, integ.S_CONTACT] > 0.5,
+        t=s[:, S_T],
+        x=s[:, S_X],
+        y_c=s[:, S_YC],
+        v_c=s[:, S_VC],
+        y_ck=s[:, S_YCK],
+        y_m=s[:, S_YM],
+        v_m=s[:, S_VM],
+        delta=s[:, S_DELTA],
+        force=s[:, S_FORCE],
+        in_contact=s[:, S_CONTACT] > 0.5,
         transitions=transitions,
         delta_c_t=dent_t,
         delta_c_x=dent_x,
         delta_c=dent_d,
-        steps=int(stats[0]),
-        rejected_steps=int(stats[1]),
-        rhs_evaluations=int(stats[2]),
+        steps=int(res.steps),
+        rejected_steps=int(res.rejected),
+        rhs_evaluations=int(res.rhs_evaluations),
         peak_force=peak_force,
         min_force=min_force,
         max_indentation=peak_delta,

@@ -1,0 +1,357 @@
+"""Event detection and location on a step's dense output, with one root finder.
+
+An event (``integrate_types.Event``) is a sign change of its event function g
+from <= 0 to > 0 (``event_value``). A step is first *accepted*, then its dense
+output is searched for the first event in it:
+
+- in contact the 12 stages of the step already evaluated δ; only if one of
+  them, or the step's end, comes within reach of a threshold (the stage gaps
+  times a bound on δ'') is the interpolant scanned (``detect_in_contact``);
+- in flight on a rigid foundation the wheel centre is a parabola (steps grow
+  to the end of the window, the error estimate being zero), so δ(t) is scanned
+  by interval bisection with a rigorous bound on δ'' (P/m + V²·max|y_C^k''|,
+  plus the foundation's acceleration): an interval is discarded only if its
+  end values and the bound prove δ < 0 inside it (``detect_in_flight``).
+
+``find_root`` (Illinois regula falsi) locates every zero the integrator needs:
+the events, and the sign changes of dδ/dt and dF/dt that are the extrema.
+
+Worked example: see ``sim_core.integrator``; ``tests/test_integrator.py``
+checks the located transitions against an independent solver to 1e-7 s.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from sim_core.contact_laws import HERTZ
+from sim_core.integrate_dense import end_acceleration
+from sim_core.integrate_model import delta_rate, force_rate
+from sim_core.integrate_types import (
+    ELASTIC,
+    EV_CONTACT,
+    EV_LOSS,
+    EV_UNYIELD,
+    EV_YIELD,
+    F_FORCE_RATE,
+    F_RATE,
+    NO_EVENT,
+    Params,
+    Table,
+    Work,
+)
+
+EVENT_TOL = 1e-14
+"""Width in time (s) to which an event is bracketed."""
+
+STAGE_GAP = 0.2667
+"""The largest gap between DOP853's stage times, as a fraction of the step."""
+
+SCAN_POINTS = 16
+"""Equal fractions of a contact step at which a threshold's event function is sampled."""
+
+
+@numba.njit(cache=True, inline="always")
+def event_value(kind: int, d: float, par: Params) -> float:
+    """g of event ``kind`` at indentation δ = ``d``: the event is g rising through 0."""
+    if kind == EV_CONTACT:
+        return d
+    if kind == EV_LOSS:
+        return -d
+    if kind == EV_YIELD:
+        return d - par.d_y - par.hyst
+    return par.d_y - par.hyst - d
+
+
+@numba.njit(cache=True)
+def value_at(
+    kind: int,
+    s: float,
+    t: float,
+    h: float,
+    coef: NDArray[np.float64],
+    par: Params,
+    tab: Table,
+    hint: int,
+) -> tuple[float, int]:
+    """Function ``kind`` (an event code, ``F_RATE`` or ``F_FORCE_RATE``) at fraction s of the step."""
+    if kind == F_FORCE_RATE:
+        _, q, hint = force_rate(s, t, h, coef, par, tab, False, hint)
+        return q, hint
+    d, r, hint = delta_rate(s, t, h, coef, par, tab, hint)
+    if kind == F_RATE:
+        return r, hint
+    return event_value(kind, d, par), hint
+
+
+@numba.njit(cache=True)
+def find_root(
+    kind: int,
+    sign: float,
+    sa: float,
+    ga: float,
+    sb: float,
+    gb: float,
+    t: float,
+    h: float,
+    coef: NDArray[np.float64],
+    par: Params,
+    tab: Table,
+    s_tol: float,
+    g_tol: float,
+    max_iter: int,
+    hint: int,
+) -> tuple[float, float, int]:
+    """Illinois regula falsi for g = sign·f_kind with g(sa) <= 0 < g(sb), on fractions of a step.
+
+    Stops when the bracket is at most ``s_tol`` wide, when |g| < ``g_tol`` or
+    after ``max_iter`` evaluations. Returns (sb, the last point evaluated, hint):
+    sb is the first point known to have g > 0 (an event's location), the last
+    point the best estimate of the zero (an extremum's location).
+    """
+    side = 0
+    sm = 0.5 * (sa + sb)
+    for _ in range(max_iter):
+        if sb - sa <= s_tol:
+            break
+        sm = (sa * gb - sb * ga) / (gb - ga) if gb != ga else 0.5 * (sa + sb)
+        if not (sa < sm < sb):
+            sm = 0.5 * (sa + sb)
+        gm, hint = value_at(kind, sm, t, h, coef, par, tab, hint)
+        gm *= sign
+        if gm > 0.0:
+            sb = sm
+            gb = gm
+            if side == -1:
+                ga *= 0.5
+            side = -1
+        else:
+            sa = sm
+            ga = gm
+            if side == 1:
+                gb *= 0.5
+            side = 1
+        if abs(gm) < g_tol:
+            break
+    return sb, sm, hint
+
+
+@numba.njit(cache=True, inline="always")
+def locate_event(
+    kind: int,
+    sa: float,
+    ga: float,
+    sb: float,
+    gb: float,
+    t: float,
+    h: float,
+    coef: NDArray[np.float64],
+    par: Params,
+    tab: Table,
+    hint: int,
+) -> tuple[float, int]:
+    """The first fraction with g > 0 in (sa, sb], to ``EVENT_TOL`` in time."""
+    tol = EVENT_TOL / h if h > 0 else EVENT_TOL
+    s, _, hint = find_root(kind, 1.0, sa, ga, sb, gb, t, h, coef, par, tab, tol, 0.0, 200, hint)
+    return s, hint
+
+
+@numba.njit(cache=True)
+def first_crossing(
+    kind: int,
+    t: float,
+    h: float,
+    coef: NDArray[np.float64],
+    par: Params,
+    tab: Table,
+    n_points: int,
+    hint: int,
+) -> tuple[float, int]:
+    """Scan g at n_points+1 equal fractions; return (the first root or -1, hint)."""
+    ga, hint = value_at(kind, 0.0, t, h, coef, par, tab, hint)
+    if ga > 0.0:
+        # Starting on the wrong side by round-off: treat the start as g = 0.
+        ga = 0.0
+    sa = 0.0
+    for j in range(1, n_points + 1):
+        sb = j / n_points
+        gb, hint = value_at(kind, sb, t, h, coef, par, tab, hint)
+        if gb > 0.0:
+            return locate_event(kind, sa, ga, sb, gb, t, h, coef, par, tab, hint)
+        sa = sb
+        ga = gb
+    return -1.0, hint
+
+
+@numba.njit(cache=True)
+def _flight_crossing(
+    t: float,
+    h: float,
+    coef: NDArray[np.float64],
+    par: Params,
+    tab: Table,
+    kinks: NDArray[np.float64],
+    stack_s: NDArray[np.float64],
+    stack_g: NDArray[np.float64],
+    s_start: float,
+    hint: int,
+) -> tuple[float, int]:
+    """(First return of contact in the step after fraction ``s_start``, or -1; hint).
+
+    On [sa, sb] with g = δ <= 0 at both ends and |δ''| <= D2, δ <= max(ga, gb) + D2·(Δt)²/8.
+    Kinks of the constraint break the bound on δ'' and are inserted as split points.
+    """
+    v = par.speed
+    d2 = par.load / par.mass + v * v * par.c2max
+    if par.compliant:
+        # the foundation's acceleration at the step's ends, from the dense coefficients
+        a0m, a1m = end_acceleration(h, coef, 1)
+        d2 += 2.0 * max(abs(a0m), abs(a1m)) + 1e-12
+    x0 = v * (t + s_start * h)
+    x1 = v * (t + h)
+    lo = 0
+    hi = 0
+    if kinks.size > 0:
+        lo = int(np.searchsorted(kinks, x0, side="right"))
+        hi = int(np.searchsorted(kinks, x1, side="left"))
+    min_ds = 1e-13 / h
+    cap = stack_s.size
+    sa = s_start
+    ga, hint = value_at(EV_CONTACT, sa, t, h, coef, par, tab, hint)
+    if ga > 0.0:
+        ga = 0.0
+    # segments between kinks, left to right; inside each, depth-first halving
+    for j in range(lo, hi + 1):
+        if j < hi:
+            s_end = (kinks[j] / v - t) / h
+            if not (sa < s_end < 1.0):
+                continue
+        else:
+            s_end = 1.0
+        n = 1
+        stack_s[0] = s_end
+        stack_g[0], hint = value_at(EV_CONTACT, s_end, t, h, coef, par, tab, hint)
+        while n > 0:
+            sb = stack_s[n - 1]
+            gb = stack_g[n - 1]
+            dt = (sb - sa) * h
+            if gb > 0.0:
+                # A crossing lies in [sa, sb] and none before sa. It is the only one if g
+                # is monotone there: g'(sa) > |g''|max·Δt. Otherwise halve and look left first.
+                _, rate_a, hint = delta_rate(sa, t, h, coef, par, tab, hint)
+                if rate_a > d2 * dt or (sb - sa) < min_ds or n >= cap:
+                    return locate_event(EV_CONTACT, sa, ga, sb, gb, t, h, coef, par, tab, hint)
+            else:
+                bound = max(ga, gb) + d2 * dt * dt / 8.0
+                if bound < 0.0 or (sb - sa) < min_ds or n >= cap:
+                    # proven free of contact (or unresolvably small): move on
+                    sa = sb
+                    ga = gb
+                    n -= 1
+                    continue
+            sm = 0.5 * (sa + sb)
+            stack_s[n] = sm
+            stack_g[n], hint = value_at(EV_CONTACT, sm, t, h, coef, par, tab, hint)
+            n += 1
+    return -1.0, hint
+
+
+@numba.njit(cache=True)
+def detect_in_flight(
+    t: float, h: float, w: Work, par: Params, tab: Table, kinks: NDArray[np.float64], hint: int
+) -> tuple[float, int, int]:
+    """(fraction, ``EV_CONTACT`` or ``NO_EVENT``, hint): the first landing in a flight step."""
+    coef = w.coef
+    s_from = 0.0
+    while True:
+        ev_s, hint = _flight_crossing(
+            t, h, coef, par, tab, kinks, w.stack_s, w.stack_g, s_from, hint
+        )
+        if ev_s < 0.0:
+            return -1.0, NO_EVENT, hint
+        _, rate, hint = delta_rate(ev_s, t, h, coef, par, tab, hint)
+        if rate > 0.0:
+            return ev_s, EV_CONTACT, hint
+        # a grazing touch (δ reaches 0 without rising through it): look on after it
+        s_from = ev_s + max(1e-12, 1e-14 / h)
+        if s_from >= 1.0:
+            return -1.0, NO_EVENT, hint
+
+
+@numba.njit(cache=True)
+def detect_in_contact(
+    mode: int, t: float, h: float, w: Work, par: Params, tab: Table, hint: int
+) -> tuple[float, int, int]:
+    """(fraction, event code or ``NO_EVENT``, hint): the first switch in a contact step.
+
+    Elastic: loss of contact, or yield for a plastic law; plastic: unyield. A
+    loss where δ does not fall (a grazing touch of 0) is not an event.
+    """
+    K = w.K
+    coef = w.coef
+    dstage = w.dstage
+    dmin = dstage[12]
+    dmax = dstage[12]
+    amax_c = 0.0
+    amax_m = 0.0
+    for q in range(0, 13):
+        if q > 0:
+            dmin = min(dmin, dstage[q])
+            dmax = max(dmax, dstage[q])
+        amax_c = max(amax_c, abs(K[q, 1]))
+        amax_m = max(amax_m, abs(K[q, 3]))
+    # Between the stage times δ can leave the range of the stage values by at most
+    # |δ''|max·gap²/8: scan only if that reaches a threshold.
+    v = par.speed
+    gap = STAGE_GAP * h
+    slack = 1.5 * (amax_c + amax_m + v * v * par.c2max) * gap * gap / 8.0
+    ev_s = -1.0
+    ev_kind = NO_EVENT
+    if mode == ELASTIC:
+        if dmin - slack <= 0.0:
+            s_l, hint = first_crossing(EV_LOSS, t, h, coef, par, tab, SCAN_POINTS, hint)
+            if s_l >= 0.0:
+                ev_s = s_l
+                ev_kind = EV_LOSS
+        if par.law != HERTZ and dmax + slack > par.d_y:
+            s_y, hint = first_crossing(EV_YIELD, t, h, coef, par, tab, SCAN_POINTS, hint)
+            if s_y >= 0.0 and (ev_s < 0.0 or s_y < ev_s):
+                ev_s = s_y
+                ev_kind = EV_YIELD
+    elif dmin - slack < par.d_y:
+        s_u, hint = first_crossing(EV_UNYIELD, t, h, coef, par, tab, SCAN_POINTS, hint)
+        if s_u >= 0.0:
+            ev_s = s_u
+            ev_kind = EV_UNYIELD
+    if ev_kind == EV_LOSS:
+        # grazing test: δ must be falling at the root
+        _, rate, hint = delta_rate(ev_s, t, h, coef, par, tab, hint)
+        if rate >= 0.0:
+            ev_kind = NO_EVENT
+    return ev_s, ev_kind, hint
+
+
+@numba.njit(cache=True, inline="always")
+def extremum_in(
+    kind: int,
+    fa: float,
+    fb: float,
+    t: float,
+    h: float,
+    coef: NDArray[np.float64],
+    par: Params,
+    tab: Table,
+    g_tol: float,
+    hint: int,
+) -> tuple[float, int]:
+    """Where f_kind (``F_RATE`` or ``F_FORCE_RATE``), of signs fa at s = 0 and fb at s = 1, vanishes.
+
+    To 1e-11 s in time: the extremum is flat there, so its value is exact to far below round-off.
+    """
+    sign = -1.0 if fa > 0.0 else 1.0
+    _, sm, hint = find_root(
+        kind, sign, 0.0, sign * fa, 1.0, sign * fb, t, h, coef, par, tab, 1e-11 / h, g_tol, 60, hint
+    )
+    return sm, hint

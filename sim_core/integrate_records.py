@@ -1,0 +1,260 @@
+"""What the integrator records from each accepted step: samples, extrema, dents, transitions.
+
+All of it is read off the step's continuous solution (its dense output), not
+off the step ends alone:
+
+- samples at the requested output times (``write_samples``);
+- extrema of δ and F in contact (``step_extrema``): at the step ends and where
+  dδ/dt — or, with a curvature-dependent C(x), the rate of C(x)·δ^(3/2) —
+  changes sign inside the step;
+- the indentation at the contact point every ``dent_dx`` of travel while the
+  contact is plastic (``record_dents``), the input of ``sim_core.dents``;
+- the located transitions (``push_row``).
+
+Buffers that grow (transitions, dents) are float arrays of rows; a function
+that may grow one returns it.
+
+Worked example: see ``sim_core.passage.simulate_passage``, which reads these
+records into a ``PassageOutput``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from sim_core.constraint_table import linear_at
+from sim_core.integrate_dense import dense
+from sim_core.integrate_events import extremum_in
+from sim_core.integrate_model import (
+    before,
+    constraint_at,
+    delta_rate,
+    force,
+    force_rate,
+    loading_force,
+    slope_at,
+)
+from sim_core.integrate_types import (
+    ELASTIC,
+    F_FORCE_RATE,
+    F_RATE,
+    FLIGHT,
+    S_CONTACT,
+    S_DELTA,
+    S_FORCE,
+    S_T,
+    S_VC,
+    S_VM,
+    S_X,
+    S_YC,
+    S_YCK,
+    S_YM,
+    X_MIN_DELTA,
+    X_MIN_FORCE,
+    X_PEAK_DELTA,
+    X_PEAK_FORCE,
+    Params,
+    Table,
+)
+
+
+@numba.njit(cache=True)
+def reserve(buf: NDArray[np.float64], n: int, extra: int) -> NDArray[np.float64]:
+    """``buf`` (rows) with room for ``extra`` more rows after the first ``n``: doubled when short."""
+    if n + extra < buf.shape[0]:
+        return buf
+    out = np.empty((2 * (n + extra), buf.shape[1]))
+    out[:n] = buf[:n]
+    return out
+
+
+@numba.njit(cache=True)
+def push_row(
+    buf: NDArray[np.float64], n: int, a: float, b: float
+) -> tuple[NDArray[np.float64], int]:
+    """Append the row (a, b) to a two-column buffer: (buffer, new count)."""
+    buf = reserve(buf, n, 1)
+    buf[n, 0] = a
+    buf[n, 1] = b
+    return buf, n + 1
+
+
+@numba.njit(cache=True, inline="always")
+def _write_row(
+    samples: NDArray[np.float64],
+    i: int,
+    ts: float,
+    x: float,
+    yc: float,
+    vc: float,
+    ym: float,
+    vm: float,
+    ck: float,
+    d: float,
+    f: float,
+    mode: int,
+) -> None:
+    samples[i, S_T] = ts
+    samples[i, S_X] = x
+    samples[i, S_YC] = yc
+    samples[i, S_VC] = vc
+    samples[i, S_YM] = ym
+    samples[i, S_VM] = vm
+    samples[i, S_YCK] = ck
+    samples[i, S_DELTA] = d
+    samples[i, S_FORCE] = f
+    samples[i, S_CONTACT] = 1.0 if mode != FLIGHT else 0.0
+
+
+@numba.njit(cache=True)
+def write_initial_samples(
+    samples: NDArray[np.float64],
+    sample_t: NDArray[np.float64],
+    t0: float,
+    y: NDArray[np.float64],
+    ck0: float,
+    delta0: float,
+    mode: int,
+    par: Params,
+) -> int:
+    """Samples at times <= t0 (the initial state); returns how many."""
+    si = 0
+    while si < sample_t.size and sample_t[si] <= t0:
+        si += 1
+    f0 = force(delta0, mode, par, 1.0)
+    for q in range(si):
+        _write_row(
+            samples,
+            q,
+            sample_t[q],
+            par.speed * sample_t[q],
+            y[0],
+            y[1],
+            y[2],
+            y[3],
+            ck0,
+            delta0,
+            f0,
+            mode,
+        )
+    return si
+
+
+@numba.njit(cache=True)
+def write_samples(
+    samples: NDArray[np.float64],
+    si: int,
+    sample_t: NDArray[np.float64],
+    tn: float,
+    t: float,
+    h: float,
+    coef: NDArray[np.float64],
+    mode: int,
+    par: Params,
+    tab: Table,
+    hint: int,
+) -> tuple[int, int]:
+    """Samples at the output times in (t, tn] from the step [t, t + h]: (next sample, hint)."""
+    v = par.speed
+    while si < sample_t.size and sample_t[si] <= tn:
+        ts = sample_t[si]
+        s = (ts - t) / h if h > 0.0 else 0.0
+        yc, vc, ym, vm = dense(s, h, coef)
+        ck, _, sc, hint = constraint_at(tab, v * ts, hint)
+        d = -yc + ck + ym
+        _write_row(samples, si, ts, v * ts, yc, vc, ym, vm, ck, d, force(d, mode, par, sc), mode)
+        si += 1
+    return si, hint
+
+
+@numba.njit(cache=True)
+def step_extrema(
+    ext: NDArray[np.float64],
+    mode: int,
+    t: float,
+    h: float,
+    y: NDArray[np.float64],
+    ynew: NDArray[np.float64],
+    coef: NDArray[np.float64],
+    par: Params,
+    tab: Table,
+    hint: int,
+) -> tuple[float, float, int]:
+    """Fold the extrema of δ and F over the contact step [t, t + h] into ``ext``.
+
+    Returns (δ, dδ/dt, hint) at the step's end (left-hand slope: the end may be a kink).
+    """
+    v = par.speed
+    # δ and dδ/dt at the step's ends come from the states themselves
+    ck_a, dck_a, hint = slope_at(tab, v * t, hint)
+    ck_b, dck_b, hint = slope_at(tab, before(v * (t + h), True), hint)
+    d_a = -y[0] + ck_a + y[2]
+    r_a = -y[1] + v * dck_a + y[3]
+    d_b = -ynew[0] + ck_b + ynew[2]
+    r_b = -ynew[1] + v * dck_b + ynew[3]
+    ext[X_PEAK_DELTA] = max(ext[X_PEAK_DELTA], d_a, d_b)
+    ext[X_MIN_DELTA] = min(ext[X_MIN_DELTA], d_a, d_b)
+    by_delta = tab.scale.size == 0 or mode != ELASTIC
+    if (r_a > 0.0 and r_b < 0.0) or (r_a < 0.0 and r_b > 0.0):
+        # a local extremum of δ inside (δ is flat there, so 1e-11 s in time is far
+        # below 1e-15 m in δ)
+        sm, hint = extremum_in(F_RATE, r_a, r_b, t, h, coef, par, tab, 1e-16 / h, hint)
+        d_m, _, hint = delta_rate(sm, t, h, coef, par, tab, hint)
+        ext[X_PEAK_DELTA] = max(ext[X_PEAK_DELTA], d_m)
+        ext[X_MIN_DELTA] = min(ext[X_MIN_DELTA], d_m)
+        if by_delta:
+            _fold_force(ext, loading_force(d_m, par, 1.0))
+    if by_delta:
+        # F rises with δ in every mode and σ only scales the elastic branch: the
+        # extrema of F are those of δ
+        _fold_force(ext, loading_force(d_a, par, 1.0))
+        _fold_force(ext, loading_force(d_b, par, 1.0))
+    else:
+        # F = σ(x)·C·δ^(3/2): its extrema are not those of δ; locate them on q
+        f_a, q_a, hint = force_rate(0.0, t, h, coef, par, tab, False, hint)
+        f_b, q_b, hint = force_rate(1.0, t, h, coef, par, tab, True, hint)
+        _fold_force(ext, f_a)
+        _fold_force(ext, f_b)
+        if (q_a > 0.0 and q_b < 0.0) or (q_a < 0.0 and q_b > 0.0):
+            sm, hint = extremum_in(F_FORCE_RATE, q_a, q_b, t, h, coef, par, tab, 0.0, hint)
+            f_m, _, hint = force_rate(sm, t, h, coef, par, tab, False, hint)
+            _fold_force(ext, f_m)
+    return d_b, r_b, hint
+
+
+@numba.njit(cache=True, inline="always")
+def _fold_force(ext: NDArray[np.float64], f: float) -> None:
+    ext[X_PEAK_FORCE] = max(ext[X_PEAK_FORCE], f)
+    ext[X_MIN_FORCE] = min(ext[X_MIN_FORCE], f)
+
+
+@numba.njit(cache=True)
+def record_dents(
+    dents: NDArray[np.float64],
+    n: int,
+    t: float,
+    h: float,
+    coef: NDArray[np.float64],
+    par: Params,
+    tab: Table,
+    hint: int,
+) -> tuple[NDArray[np.float64], int, int]:
+    """Rows (t, x_D, δ) every ``par.dent_dx`` of travel over the plastic step [t, t + h]."""
+    v = par.speed
+    npts = math.ceil(v * h / par.dent_dx) + 1
+    dents = reserve(dents, n, npts + 1)
+    for q in range(npts + 1):
+        s = q / npts
+        d_q, _, hint = delta_rate(s, t, h, coef, par, tab, hint)
+        xd, _, shift, hint = linear_at(
+            tab.x, tab.contact_x, tab.period, v * (t + s * h), hint, True
+        )
+        dents[n, 0] = t + s * h
+        dents[n, 1] = xd + shift
+        dents[n, 2] = d_q
+        n += 1
+    return dents, n, hint

@@ -1,0 +1,226 @@
+"""What the compiled integrator is handed and what it hands back: typed named tuples and codes.
+
+Two named tuples replace the long argument lists and the float vector that once
+carried integer codes:
+
+- ``Table``: the arrays of a ``ConstraintTable`` (nodes, values, one-sided
+  slopes, contact points, stiffness scale) and its period;
+- ``Params``: the passage's constants, the float ones as floats and the codes
+  (contact law, foundation, dent tracking) as an int and bools.
+
+Numba compiles a named tuple to a struct passed by value, so the compiled
+functions read ``par.mass`` or ``tab.x`` at no cost. Build them with
+``table_of`` and ``Params(...)`` (every field converted to its declared type,
+so that one compiled signature serves every call).
+
+One numbering of events (``Event``) serves the transition list, the event
+functions and the root finder.
+
+Worked example:
+
+    >>> import numpy as np
+    >>> from sim_core.constraint import flat_constraint
+    >>> tab = table_of(flat_constraint())
+    >>> tab.period > 0, tab.x.dtype == np.float64
+    (True, True)
+    >>> Event(0).name, [e.label for e in Event]
+    ('LOSS', ['loss', 'contact', 'yield', 'unyield'])
+"""
+
+from __future__ import annotations
+
+from enum import IntEnum
+from typing import NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sim_core.constraint_table import ConstraintTable
+
+
+class Event(IntEnum):
+    """A change of mode located by the integrator: the transition codes of ``PassageOutput``.
+
+    Each has an event function g, signed so that the event is g going from <= 0 to > 0
+    (``sim_core.integrate_events.event_value``).
+    """
+
+    LOSS = 0
+    """δ falls through 0 (g = -δ)."""
+    CONTACT = 1
+    """δ rises through 0 (g = δ)."""
+    YIELD = 2
+    """δ rises through δ_Y + hysteresis (g = δ - δ_Y - hyst)."""
+    UNYIELD = 3
+    """δ falls through δ_Y - hysteresis (g = δ_Y - hyst - δ)."""
+
+    @property
+    def label(self) -> str:
+        return self.name.lower()
+
+
+# The same codes as plain ints for the compiled code (an int compares and stores
+# without the enum type in the way); NO_EVENT marks "none in this step".
+EV_LOSS = int(Event.LOSS)
+EV_CONTACT = int(Event.CONTACT)
+EV_YIELD = int(Event.YIELD)
+EV_UNYIELD = int(Event.UNYIELD)
+NO_EVENT = -1
+
+# Other functions the root finder locates zeros of (continuing the event codes).
+F_RATE = 4
+"""dδ/dt: its sign changes are extrema of δ."""
+F_FORCE_RATE = 5
+"""q = 1.5·σ·dδ/dt + V·σ'·δ, the sign of dF/dt with a stiffness scale σ(x)."""
+
+# Modes: the branch of the right-hand side in force during a step.
+FLIGHT = 0
+ELASTIC = 1
+PLASTIC = 2
+MODE_NAMES = ("flight", "elastic", "plastic")
+
+# Status codes.
+OK = 0
+STEP_TOO_SMALL = 1
+TOO_MANY_STEPS = 2
+
+# Sample columns.
+S_T = 0
+S_X = 1
+S_YC = 2
+S_VC = 3
+S_YM = 4
+S_VM = 5
+S_YCK = 6
+S_DELTA = 7
+S_FORCE = 8
+S_CONTACT = 9
+N_COLS = 10
+
+# Extrema vector (taken from the continuous solution).
+X_PEAK_DELTA = 0
+X_MIN_DELTA = 1
+X_T_FLIGHT = 2
+X_PEAK_FORCE = 3
+X_MIN_FORCE = 4
+N_EXTREMA = 5
+
+
+class Table(NamedTuple):
+    """The constraint table as the compiled code reads it (see ``ConstraintTable``)."""
+
+    x: NDArray[np.float64]
+    y: NDArray[np.float64]
+    slope_left: NDArray[np.float64]
+    slope_right: NDArray[np.float64]
+    contact_x: NDArray[np.float64]
+    scale: NDArray[np.float64]
+    """Empty, or C(x)/C per node (linear between nodes)."""
+    period: float
+
+
+def table_of(table: ConstraintTable) -> Table:
+    """The compiled view of ``table`` (contiguous float64 arrays, float period)."""
+
+    def arr(a: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.ascontiguousarray(a, dtype=np.float64)
+
+    return Table(
+        arr(table.x),
+        arr(table.y),
+        arr(table.slope_left),
+        arr(table.slope_right),
+        arr(table.contact_x),
+        arr(table.stiffness_scale),
+        float(table.period),
+    )
+
+
+class Params(NamedTuple):
+    """The constants of one passage (SI units)."""
+
+    # contact law (MODEL.md §3)
+    law: int
+    """``contact_laws.HERTZ``, ``JOHNSON`` or ``HERTZ_PLASTIC``."""
+    c: float
+    f_y: float
+    d_y: float
+    theta: float
+    hyst: float
+    """Width of the elastic/plastic switch's hysteresis (m)."""
+    # bodies (MODEL.md §4)
+    mass: float
+    load: float
+    speed: float
+    compliant: bool
+    f_mass: float
+    """Foundation mass (1 when rigid, unused)."""
+    f_stiff: float
+    f_damp: float
+    # accuracy and resolution
+    rtol: float
+    atol_y: float
+    atol_v: float
+    hmax_contact: float
+    """Longest step in contact (s)."""
+    c2max: float
+    """max |y_C^k''| of the table (1/m)."""
+    # dent records (MODEL.md §5)
+    track_dents: bool
+    dent_dx: float
+
+    @classmethod
+    def build(cls, **kw: float | int | bool) -> Params:
+        """Every field converted to its declared type (one compiled signature for all calls)."""
+        out: dict[str, float | int | bool] = {}
+        for name in cls._fields:
+            kind = cls.__annotations__[name]
+            v = kw.pop(name)
+            out[name] = int(v) if kind == "int" else bool(v) if kind == "bool" else float(v)
+        if kw:
+            raise TypeError(f"unknown parameters {sorted(kw)}")
+        return cls(**out)  # type: ignore[arg-type]
+
+
+class Work(NamedTuple):
+    """The integrator's scratch arrays, allocated once per passage."""
+
+    K: NDArray[np.float64]
+    """[13, 4] stage derivatives (v_C, a_C, v_M, a_M) of the current step."""
+    dstage: NDArray[np.float64]
+    """[13] δ at each stage (NaN in flight)."""
+    tmp: NDArray[np.float64]
+    """[4] the state at a stage."""
+    ynew: NDArray[np.float64]
+    """[4] the state at the step's end."""
+    coef: NDArray[np.float64]
+    """[2, 8] the step's dense output (``integrate_dense``)."""
+    stack_s: NDArray[np.float64]
+    """[128] the flight scan's bisection stack: fractions ..."""
+    stack_g: NDArray[np.float64]
+    """[128] ... and δ there."""
+
+
+class Result(NamedTuple):
+    """What ``integrator.integrate`` returns."""
+
+    status: int
+    """``OK``, ``STEP_TOO_SMALL`` or ``TOO_MANY_STEPS``."""
+    t_end: float
+    """The time reached (``t1`` unless it failed)."""
+    mode_end: int
+    """The mode there."""
+    samples: NDArray[np.float64]
+    """[n, N_COLS] at the requested times."""
+    transitions: NDArray[np.float64]
+    """[m, 2] rows (t, ``Event`` code)."""
+    extrema: NDArray[np.float64]
+    """[N_EXTREMA] indexed by X_*: peak δ, least δ in contact, time out of contact,
+    peak force, least force in contact (on the loading branch)."""
+    dents: NDArray[np.float64]
+    """[k, 3] rows (t, x_D, δ) taken while plastic."""
+    steps: int
+    rejected: int
+    rhs_evaluations: int
+    y_end: NDArray[np.float64]
+    """The final state (y_C, v_C, y_M, v_M)."""
