@@ -1389,6 +1389,46 @@ def _poly_points(
     return out
 
 
+FLAT_ZONE_MARGIN = 1e-4
+"""Margin (rad) on the flat's angular extent when deciding where the round table holds."""
+
+
+def _contact_zones(
+    rn: NDArray[np.float64], R: float, half: float, phase: float, x0: float, x1: float
+) -> list[tuple[float, float]]:
+    """Stretches of [x0, x1] where a flat (|θ| <= ``half``, r <= R) can change y_C^k.
+
+    A flat lies inside the nominal circle, so y_C^k equals the round wheel's constraint
+    wherever the round wheel's own contact point is on the round part of the outline. That
+    point's wheel angle θ* = asin((x_D - x)/R) + φ is non-decreasing along the stretch (the
+    contact point of a round wheel only moves forward; while it pivots on a rail vertex θ*
+    falls by at most (1 - cos ψ)/(R cos ψ) per metre, ~1e-7 rad per node interval, far
+    below FLAT_ZONE_MARGIN), so between two nodes of the round table it stays between its
+    values at the nodes: an interval belongs to a zone if that range meets a flat.
+    """
+    x = rn[:, _X]
+    i0 = max(int(np.searchsorted(x, x0, side="right")) - 1, 0)
+    i1 = min(int(np.searchsorted(x, x1, side="left")) + 1, x.size)
+    xs = x[i0:i1]
+    th = np.arcsin(np.clip((rn[i0:i1, _XD] - xs) / R, -1.0, 1.0)) + phase + xs / R
+    lo, hi = th[:-1] - FLAT_ZONE_MARGIN, th[1:] + FLAT_ZONE_MARGIN
+    k = np.floor((lo + half) / TWO_PI)
+    # the first flat at or after lo - half ... the interval meets it if it starts before its end
+    hit = np.zeros(lo.size, bool)
+    for kk in (k, k + 1.0):
+        hit |= (lo <= TWO_PI * kk + half) & (hi >= TWO_PI * kk - half)
+    zones: list[tuple[float, float]] = []
+    for i in np.flatnonzero(hit):
+        a, b = max(float(xs[i]), x0), min(float(xs[i + 1]), x1)
+        if b <= a:
+            continue
+        if zones and a <= zones[-1][1]:
+            zones[-1] = (zones[-1][0], b)
+        else:
+            zones.append((a, b))
+    return zones
+
+
 def _tabulate_polyline(
     wheel: WheelOutline,
     rail: RailProfile,
@@ -1414,7 +1454,12 @@ def _tabulate_polyline(
     def nint(lo: float, hi: float) -> int:
         return max(math.ceil((hi - lo) / step), 2)
 
-    zones = flat_zones(wheel, poly, phase, x0, x1)
+    if wheel.kind in ("ideal_flat", "rounded_flat"):
+        zones = _contact_zones(
+            _round_nodes(rail, poly, R, step, x0, x1), R, wheel.flat_half_angle, phase, x0, x1
+        )
+    else:
+        zones = flat_zones(wheel, poly, phase, x0, x1)
     # the stretch in order: gaps (round closed form, cut from the rail's round table at exact
     # end nodes unless a zone supplies the node) and zones (the cell sweep)
     pieces: list[tuple[str, float, float]] = []

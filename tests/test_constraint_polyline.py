@@ -2,10 +2,13 @@
 
 Every out-of-round wheel kind (ideal flat, rounded flat, sampled outline) on every
 polyline rail kind (random roughness, a measured file, a dented rail), on short windows
-where the flat or the outline's bumps carry the wheel: values within 1e-10 m of the
-ψ-search's table at 20 000 points (in practice ~1e-12: where they differ most, the sweep's
-value is the exact one), node values within 1e-15 m of the exact solve, and the kinks
-(slope jumps > 1e-6) at the same positions within 1e-9 m.
+where the flat or the outline's bumps carry the wheel: values within 1e-12 m of the
+ψ-search's table at 99 % of 20 000 points, and where they differ most the sweep's value is
+the exact one (a brute-force reference) to the table's tolerance (1e-11 m; the ψ-search now
+and then misses a wheel corner by ~1e-11 m); node values within 1e-15 m of the exact solve
+(or of the reference); the ψ-search's kinks (slope jumps > 1e-6) found at the same positions
+within 1e-9 m, and the sweep's extra kinks (a wheel corner passing a rail vertex) confirmed
+by one-sided slopes of the reference.
 """
 
 from __future__ import annotations
@@ -137,16 +140,18 @@ def test_polyline_sweep_against_general(wheel_kind: str, rail_kind: str) -> None
     # misses a wheel corner by ~1e-11 m)
     worst = xq[np.argsort(diff)[-12:]]
     yr = reference(wheel, rail, worst, phase)
-    assert np.abs(yr - fast.evaluate(worst)).max() < 1e-12  # the Hermite tolerance, ~1e-13
-    wrong_general = np.abs(yr - gen.evaluate(worst)) > 1e-12
-    assert diff.max() < 1e-12 or wrong_general.any()
+    # the table's own tolerance: Hermite 1e-13, and a slope jump below KINK_SLOPE = 1e-7 is
+    # smoothed (sim_core.constraint), which costs up to h·1e-7/8 ~ 6e-12 m next to it
+    assert np.abs(yr - fast.evaluate(worst)).max() < 1e-11
+    wrong_general = np.abs(yr - gen.evaluate(worst)) > 1e-11
+    assert diff.max() < 1e-11 or wrong_general.any()
     # node values are exact
     inside = (fast.x > lo) & (fast.x < hi)
     yn, _ = evaluate_exact(wheel, rail, fast.x[inside][::3], phase=phase)
     close = np.abs(yn - fast.y[inside][::3]) < 1e-15
     assert close.mean() > 0.99
     xo = fast.x[inside][::3][~close][:10]
-    assert np.abs(reference(wheel, rail, xo, phase) - fast.evaluate(xo)).max(initial=0.0) < 1e-12
+    assert np.abs(reference(wheel, rail, xo, phase) - fast.evaluate(xo)).max(initial=0.0) < 1e-11
     # the same kinks at the same places (to 1e-9 m), except where the ψ-search is wrong; the
     # sweep also flags the kinks where a wheel corner passes a rail vertex (the contact angle
     # does not jump, so the ψ-search does not flag them): those are checked on the exact solve
@@ -161,7 +166,7 @@ def test_polyline_sweep_against_general(wheel_kind: str, rail_kind: str) -> None
     assert np.mean(miss < 1e-9) > 0.97
     for k in kg[miss >= 1e-9][:5]:
         xs = np.array([k - 3e-8, k + 3e-8])
-        assert np.abs(reference(wheel, rail, xs, phase) - fast.evaluate(xs)).max() < 1e-12
+        assert np.abs(reference(wheel, rail, xs, phase) - fast.evaluate(xs)).max() < 1e-11
     extra = kf[nearest(kf, kg) >= 1e-9][:8]
     for k in extra:
         i = np.searchsorted(fast.x, k)
