@@ -337,6 +337,34 @@ def _contrast(prob: _Problem, best: Candidate, before: float, after: float,
     return significance / worst
 
 
+def _refine(prob: _Problem, kind: FlatKind, ln: float, z: float, zetas: tuple[float, ...],
+            grid: tuple[float, ...], options: FitOptions, rounds: int) -> Candidate:
+    """Alternate golden sections on the damping ratio and the length of one kind.
+
+    The first round brackets by the coarse grids' neighbours, later rounds by ±0.06 in
+    damping ratio and ±10 % in length.
+    """
+    for rnd in range(rounds):
+        if len(zetas) > 1:
+            if rnd == 0:
+                iz = zetas.index(z)
+                zlo, zhi = zetas[max(iz - 1, 0)], zetas[min(iz + 1, len(zetas) - 1)]
+            else:
+                zlo, zhi = max(0.0, z - 0.06), min(zetas[-1], z + 0.06)
+            _golden(lambda zz, ln=ln: prob.evaluate(kind, ln, zz).cost, zlo, zhi,
+                    options.refine_evaluations - 2)
+            z = _best(prob, kind, length=ln).zeta
+        if rnd == 0:
+            i = int(np.argmin([prob.evaluate(kind, g, z).cost for g in grid]))
+            llo, lhi = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
+        else:
+            llo, lhi = 0.9 * ln, min(1.1 * ln, grid[-1])
+        _golden(lambda ll, z=z: prob.evaluate(kind, ll, z).cost, llo, lhi,
+                options.refine_evaluations)
+        ln = _best(prob, kind, zeta=z).length
+    return _best(prob, kind, zeta=z)
+
+
 def _best(prob: _Problem, kind: str, *, length: float | None = None,
           zeta: float | None = None) -> Candidate:
     """The cheapest evaluated candidate of ``kind`` (at ``length`` or at ``zeta`` if given)."""
@@ -453,29 +481,11 @@ def estimate_flat(
                 prob.evaluate(kind, ln, z)
     # 2. per kind, the length and the foundation's damping ratio by alternating golden
     #    sections (they trade off: more damping looks like a shorter flat)
-    best_of_kind: dict[str, Candidate] = {}
+    best_of_kind: dict[FlatKind, Candidate] = {}
     for kind in options.kinds:
         cur = min((c for c in prob.evaluated.values() if c.kind == kind), key=lambda c: c.cost)
-        ln, z = cur.length, cur.zeta
-        for rnd in range(options.refine_rounds):
-            if len(zetas) > 1:
-                if rnd == 0:
-                    iz = zetas.index(z)
-                    zlo, zhi = zetas[max(iz - 1, 0)], zetas[min(iz + 1, len(zetas) - 1)]
-                else:
-                    zlo, zhi = max(0.0, z - 0.06), min(zetas[-1], z + 0.06)
-                _golden(lambda zz, kind=kind, ln=ln: prob.evaluate(kind, ln, zz).cost, zlo, zhi,
-                        options.refine_evaluations - 2)
-                z = _best(prob, kind, length=ln).zeta
-            if rnd == 0:
-                i = int(np.argmin([prob.evaluate(kind, g, z).cost for g in grid]))
-                llo, lhi = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
-            else:
-                llo, lhi = 0.9 * ln, min(1.1 * ln, grid[-1])
-            _golden(lambda ll, kind=kind, z=z: prob.evaluate(kind, ll, z).cost, llo, lhi,
-                    options.refine_evaluations)
-            ln = _best(prob, kind, zeta=z).length
-        best_of_kind[kind] = _best(prob, kind, zeta=z)
+        best_of_kind[kind] = _refine(prob, kind, cur.length, cur.zeta, zetas, grid, options,
+                                     options.refine_rounds)
     best = min(best_of_kind.values(), key=lambda c: c.cost)
     at_zeta = [c for c in prob.evaluated.values() if c.zeta == best.zeta]
     n_eff = n * (min(1.0, 2.0 * sensor.cutoff_hz / rate) if sensor.cutoff_hz else 1.0)
