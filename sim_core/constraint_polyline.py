@@ -498,6 +498,10 @@ def _global(
         xb = x + (R + drb) * math.sin(b)
         ja = _seg_of(vx, xa)
         jb = _seg_of(vx, xb)
+        hav = int(P[k, _KIND]) == PIECE_HAVERSINE and P[k, _CEN] == 0.0
+        hd = P[k, _C0]
+        hw = TWO_PI * R / P[k, _C1] if hav else 0.0
+        hhalf = 0.5 * P[k, _C1] / R
         for j in range(ja, jb + 1):
             if g == g0 and j == j0:
                 continue
@@ -511,6 +515,22 @@ def _global(
             bound = max(vy[j], vy[j + 1]) + top - _drop_lb(max(u / rw, pmin), R)
             if bound < best:
                 continue
+            if hav:
+                # r - R grows with |θ| on a haversine: bound it at the segment's far wheel angle
+                # (ρ in [R - d, R] puts ψ between asin(u/R) and asin(u/(R - d)))
+                q0 = min(max((vx[j] - x) / R, -1.0), 1.0)
+                q1 = min(max((vx[j + 1] - x) / R, -1.0), 1.0)
+                q0d = min(max((vx[j] - x) / (R - hd), -1.0), 1.0)
+                q1d = min(max((vx[j + 1] - x) / (R - hd), -1.0), 1.0)
+                tlo = min(math.asin(q0), math.asin(q0d)) + phi - sh - 1e-9
+                thi = max(math.asin(q1), math.asin(q1d)) + phi - sh + 1e-9
+                tfar = min(max(abs(tlo), abs(thi)), hhalf)
+                drb = min(-0.5 * hd * (1.0 + math.cos(hw * tfar)), dm)
+                bound2 = (
+                    max(vy[j], vy[j + 1]) + drb * math.cos(psw) - _drop_lb(max(u / rw, pmin), R)
+                )
+                if bound2 < best:
+                    continue
             v, t, gg, r, s, xd = _cell(P, n, R, vx, vy, sl, g, j, x, phi, psw)
             if v > best:
                 best, bt, bg, br, bs, bx = v, t, gg, r, s, xd
