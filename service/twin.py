@@ -367,15 +367,18 @@ class Twin:
 
     def _too_deep(self, item: Inbound, measured: bool) -> bool:
         """Refuse JSON nested deeper than ``limits.MAX_NESTING`` before it is parsed."""
-        if not limits.nesting_too_deep(item.payload):
+        problem = limits.structure_problem(item.payload)
+        if problem is None:
             return False
         self._log_input(item, None)
         what = "measurement" if measured else "passage"
-        message = f"JSON nested deeper than {limits.MAX_NESTING} levels"
+        error_type, message = problem
+        kind: ErrorKind = "invalid_json" if error_type == "json_too_deep" else (
+            "invalid_measurement" if measured else "invalid_passage")
         self._publish_error(ServiceError(
-            site_id=self.site.site_id, kind="invalid_json",
-            message=f"{what} rejected, not JSON it may send: {message}", field=None,
-            problems=[FieldProblem(field="", message=message, type="json_too_deep")],
+            site_id=self.site.site_id, kind=kind,
+            message=f"{what} rejected before it was read: {message}", field=None,
+            problems=[FieldProblem(field="", message=message, type=error_type)],
             passage_id=limits.peek_passage_id(item.payload), received_at=item.received_ns / 1e9,
         ))
         return True

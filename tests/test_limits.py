@@ -128,6 +128,16 @@ def test_nesting_edge() -> None:
     assert limits.nesting_too_deep(b"[" * (limits.MAX_NESTING + 1))
     assert not limits.nesting_too_deep(b'{"a": "' + b"[" * 100 + b'"}')
     assert not limits.nesting_too_deep(b'{"a": "\\"[[[[[[[[[[[[["}')
+    # a truncated text with many shallow brackets is left to the parser
+    cut = b'{"a":[1],"b":[2],"c":[3],"d":[4],"e":[5],"f":[6],"g":[7],"h":[8],"i":[9'
+    assert limits.structure_problem(cut) is None
+    deep = b"[" * 9 + b"]" * 9
+    assert limits.structure_problem(deep) == ("json_too_deep", "JSON nested deeper than 8 levels")
+    # a payload larger than any passage (a measurement) must have one object and one array
+    large = b'{"force": [' + b"1, " * (limits.MAX_PASSAGE_PAYLOAD_BYTES // 3) + b"1]}"
+    assert limits.structure_problem(large) is None
+    problem = limits.structure_problem(large[:-2] + b", [], [], [], [], [], [], [], []]}")
+    assert problem is not None and problem[0] == "too_many_brackets"
 
 
 def test_lowest_speed_edge() -> None:
