@@ -382,6 +382,26 @@ def _cell(
 
 
 @numba.njit(cache=True)
+def _cells_of(t: int, g: int, r: int, out: NDArray[np.int64], m: int) -> int:
+    """Append the cells (g, j) of feature (t, g, r) to ``out`` from row m; returns the new count."""
+    if t == FT_T:
+        out[m, 0] = g
+        out[m, 1] = r
+        return m + 1
+    if t == FT_W:
+        out[m, 0] = g
+        out[m, 1] = r
+        out[m + 1, 0] = g + 1
+        out[m + 1, 1] = r
+        return m + 2
+    out[m, 0] = g
+    out[m, 1] = r - 1
+    out[m + 1, 0] = g
+    out[m + 1, 1] = r
+    return m + 2
+
+
+@numba.njit(cache=True)
 def _chord_max(
     P: NDArray[np.float64],
     n: int,
@@ -457,12 +477,29 @@ def _global(
     phase: float,
     x: float,
     hint: int,
+    seed_t: int = -1,
+    seed_g: int = 0,
+    seed_r: int = 0,
 ) -> tuple[float, int, int, int, float, float, int]:
-    """(y_C^k, type, g, r, slope, x_D, piece at ψ = 0) at x: every cell that can win."""
+    """(y_C^k, type, g, r, slope, x_D, piece at ψ = 0) at x: every cell that can win.
+
+    The cells under the centre and those of the feature (seed_t, seed_g, seed_r) (the
+    winner nearby, if seed_t >= 0) set the first bound: the window and the pruning follow.
+    """
     phi = phase + x / R
     g0 = _piece_of(P, n, phi, hint)
     j0 = _seg_of(vx, x)
     best, bt, bg, br, bs, bx = _cell(P, n, R, vx, vy, sl, g0, j0, x, phi, CLIP)
+    if seed_t >= 0:
+        seeds = np.empty((2, 2), np.int64)
+        ns = _cells_of(seed_t, seed_g, seed_r, seeds, 0)
+        last = vx.size - 2
+        for c in range(ns):
+            j = seeds[c, 1]
+            if 0 <= j <= last:
+                v, t, gg, r, s, xd = _cell(P, n, R, vx, vy, sl, seeds[c, 0], j, x, phi, CLIP)
+                if t >= 0 and v > best:
+                    best, bt, bg, br, bs, bx = v, t, gg, r, s, xd
     # the window of ψ that can win
     d = ymax + drg - best
     psw = math.sqrt(2.0 * max(d, 0.0) / R) * 1.01 + 1e-12
@@ -535,26 +572,6 @@ def _global(
             if v > best:
                 best, bt, bg, br, bs, bx = v, t, gg, r, s, xd
     return best, bt, bg, br, bs, bx, g0
-
-
-@numba.njit(cache=True)
-def _cells_of(t: int, g: int, r: int, out: NDArray[np.int64], m: int) -> int:
-    """Append the cells (g, j) of feature (t, g, r) to ``out`` from row m; returns the new count."""
-    if t == FT_T:
-        out[m, 0] = g
-        out[m, 1] = r
-        return m + 1
-    if t == FT_W:
-        out[m, 0] = g
-        out[m, 1] = r
-        out[m + 1, 0] = g + 1
-        out[m + 1, 1] = r
-        return m + 2
-    out[m, 0] = g
-    out[m, 1] = r - 1
-    out[m + 1, 0] = g
-    out[m + 1, 1] = r
-    return m + 2
 
 
 @numba.njit(cache=True)
@@ -685,9 +702,11 @@ def sweep_kernel(
     h0 = (x1 - x0) / nint
     phi0 = phase + x0 / R
     hint = _piece_of(P, n, phi0, int(math.floor((phi0 - P[0, _T0]) / TWO_PI)) * n)  # noqa: RUF046
+    pt, pg, pr = -1, 0, 0
     for i in range(nint + 1):
         xv = x0 + i * h0 if i < nint else x1
-        v, t, g, r, s, xd, g0 = _global(P, n, R, vx, vy, sl, ymax, drg, phase, xv, hint)
+        v, t, g, r, s, xd, g0 = _global(P, n, R, vx, vy, sl, ymax, drg, phase, xv, hint, pt, pg, pr)
+        pt, pg, pr = t, g, r
         hint = g0
         nodes[nn, _X] = xv
         nodes[nn, _V] = v
@@ -782,7 +801,9 @@ def sweep_kernel(
                 xs = 0.5 * (lo + hi)
                 va, sa, _ = _feature_eval(P, n, R, vx, vy, sl, phase, tA, gA, rA, xs)
                 vb, sb, xdb = _feature_eval(P, n, R, vx, vy, sl, phase, tB, gB, rB, xs)
-                vg, tg, gg, rg, _, _, _ = _global(P, n, R, vx, vy, sl, ymax, drg, phase, xs, hint)
+                vg, tg, gg, rg, _, _, _ = _global(
+                    P, n, R, vx, vy, sl, ymax, drg, phase, xs, hint, tA, gA, rA
+                )
                 top = max(va, vb)
                 isab = (tg == tA and gg == gA and rg == rA) or (tg == tB and gg == gB and rg == rB)
                 valid = va > -np.inf and vb > -np.inf
@@ -844,7 +865,9 @@ def sweep_kernel(
             xn = 0.5 * (xa + xb)
             if hlen <= 1.6e-12 * scale:
                 continue
-        vg, tg, gg, rg, sg, xdg, g0 = _global(P, n, R, vx, vy, sl, ymax, drg, phase, xn, hint)
+        vg, tg, gg, rg, sg, xdg, g0 = _global(
+            P, n, R, vx, vy, sl, ymax, drg, phase, xn, hint, tA, gA, rA
+        )
         if not split:
             hm = 0.5 * (nodes[ia, _V] + nodes[ib, _V]) + 0.125 * hlen * (
                 nodes[ia, _SR] - nodes[ib, _SL]
