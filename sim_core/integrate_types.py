@@ -30,7 +30,7 @@ Worked example:
 from __future__ import annotations
 
 from enum import IntEnum
-from typing import NamedTuple
+from typing import NamedTuple, get_type_hints
 
 import numpy as np
 from numpy.typing import NDArray
@@ -172,11 +172,10 @@ class Params(NamedTuple):
     @classmethod
     def build(cls, **kw: float | int | bool) -> Params:
         """Every field converted to its declared type (one compiled signature for all calls)."""
+        hints = get_type_hints(cls)
         out: dict[str, float | int | bool] = {}
         for name in cls._fields:
-            kind = cls.__annotations__[name]
-            v = kw.pop(name)
-            out[name] = int(v) if kind == "int" else bool(v) if kind == "bool" else float(v)
+            out[name] = hints[name](kw.pop(name))
         if kw:
             raise TypeError(f"unknown parameters {sorted(kw)}")
         return cls(**out)  # type: ignore[arg-type]

@@ -515,3 +515,79 @@ def test_flat_wheel_impact_rebound_speed(record_property: Callable[[str, object]
         f"{v_any:.4f} / {v_pred:.4f}",
     )
     assert v_any == pytest.approx(v_pred, rel=0.15)
+
+
+# --------------------------------------------------------------------------------------
+# the integrator's structure (issue 7, item 4): typed parameters, one event numbering,
+# one root finder
+# --------------------------------------------------------------------------------------
+def test_parameters_are_typed_and_codes_are_not_floats() -> None:
+    """The contact law is an int and the switches are bools in the compiled signature."""
+    import numba
+
+    from sim_core.integrate_types import Params
+
+    par = Params.build(**{name: 1 for name in Params._fields})
+    ty = numba.typeof(par)
+    kinds = dict(zip(Params._fields, ty.types, strict=True))
+    assert kinds["law"] == numba.types.int64
+    assert kinds["compliant"] == numba.types.boolean
+    assert kinds["track_dents"] == numba.types.boolean
+    assert kinds["mass"] == numba.types.float64
+    with pytest.raises(TypeError):
+        Params.build(**{name: 1 for name in Params._fields}, unknown=1.0)
+
+
+def test_one_event_numbering() -> None:
+    """Transition names, the event enum and the event functions use the same codes:
+    each event function rises through 0 where its event happens."""
+    from sim_core.integrate_events import event_value
+    from sim_core.integrate_types import Event, Params
+    from sim_core.passage import TRANSITION_KINDS
+
+    assert TRANSITION_KINDS == ("loss", "contact", "yield", "unyield")
+    assert [int(e) for e in Event] == [0, 1, 2, 3]
+    fields = {name: 1.0 for name in Params._fields}
+    fields.update(law=1, d_y=1e-4, hyst=1e-14)
+    par = Params.build(**fields)
+    eps = 1e-9
+    # (event, δ before, δ after)
+    for ev, before, after in (
+        (Event.LOSS, eps, -eps),
+        (Event.CONTACT, -eps, eps),
+        (Event.YIELD, 1e-4 - eps, 1e-4 + eps),
+        (Event.UNYIELD, 1e-4 + eps, 1e-4 - eps),
+    ):
+        assert event_value(int(ev), before, par) <= 0.0 < event_value(int(ev), after, par), ev
+
+
+def test_root_finder_locates_events_and_extrema_on_a_step() -> None:
+    """find_root on a dense output with a known δ(t): an event (first g > 0) and an extremum."""
+    from sim_core.integrate_dense import fill_dense
+    from sim_core.integrate_events import extremum_in, first_crossing, locate_event
+    from sim_core.integrate_types import EV_LOSS, F_RATE, Params, table_of
+
+    # flat rail: δ = -y_C. A parabola y_C = -d + a t²/2 - ... with v0 < 0 has a minimum
+    # of y_C (maximum of δ) at t = -v0/a and loses contact where y_C = 0.
+    tab = table_of(flat_constraint())
+    fields = {name: 1.0 for name in Params._fields}
+    fields.update(law=0, speed=10.0, hyst=1e-14, c2max=0.0)
+    par = Params.build(**fields)
+    d0, v0, a = 1e-5, -0.01, 10.0
+    h = 0.01
+    y0 = np.array([-d0, v0, 0.0, 0.0])
+    k0 = np.array([v0, a, 0.0, 0.0])
+    y1 = np.array([-d0 + v0 * h + 0.5 * a * h * h, v0 + a * h, 0.0, 0.0])
+    k1 = np.array([v0 + a * h, a, 0.0, 0.0])
+    coef = np.zeros((2, 8))
+    fill_dense(coef, h, y0, k0, 0.0, 0.0, y1, k1, 0.0, 0.0)
+    # loss: -d0 + v0 t + a t²/2 = 0
+    t_loss = (-v0 + math.sqrt(v0 * v0 + 2 * a * d0)) / a
+    s, _ = first_crossing(EV_LOSS, 0.0, h, coef, par, tab, 16, 0)
+    assert s * h == pytest.approx(t_loss, abs=1e-13)
+    s2, _ = locate_event(EV_LOSS, 0.0, -d0, 1.0, 1.0, 0.0, h, coef, par, tab, 0)
+    assert s2 * h == pytest.approx(t_loss, abs=1e-13)
+    # extremum of δ: dδ/dt = -(v0 + a t) = 0
+    r_a, r_b = -v0, -(v0 + a * h)
+    sm, _ = extremum_in(F_RATE, r_a, r_b, 0.0, h, coef, par, tab, 0.0, 0)
+    assert sm * h == pytest.approx(-v0 / a, abs=1e-11)
