@@ -379,8 +379,9 @@ class PhysicsPool:
         return sum(w.restarts for w in self.workers)
 
     def start(self) -> float:
-        """Start every worker (in parallel); returns the longest warm-up, s."""
-        return max(f.result() for f in [self._executor.submit(w.start) for w in self.workers])
+        """Start the workers one after the other (the first one fills numba's cache, the
+        others load it rather than all compiling at once); returns the longest warm-up, s."""
+        return max(w.start() for w in self.workers)
 
     def _with_worker(self, call: Callable[[ProcessPhysics], Any]) -> Any:
         worker = self._idle.get()

@@ -38,6 +38,8 @@ PLASTIC = SiteConfig.model_validate({
 WHEEL = WheelPassage(passage_id="w0", train_id="t1", axle_index=0, side="right",
                      timestamp=1.7e9, speed=44.4, load=60e3, mass=500.0, radius=0.46)
 BUDGET = 2.0
+START_TIMEOUT = 300.0
+"""s a service may take to start: its workers compile when numba's cache is cold."""
 SLOW_SITE = """
 site_id = "slow"
 length = 60.0
@@ -149,7 +151,8 @@ def test_never_deaf_budget_and_sigterm(tmp_path: Path) -> None:
         return bool(cond())
 
     svc = ServiceProcess(site, listen=endpoint, recordings=tmp_path / "rec",
-                         extra_args=("--passage-budget", str(BUDGET), "--no-rerun"))
+                         extra_args=("--passage-budget", str(BUDGET), "--no-rerun"),
+                         start_timeout=START_TIMEOUT)
     with svc, zenoh.open(build_config(connect=[endpoint])) as session:
         sub = session.declare_subscriber(keys.all_outputs, on_output)
         pub = declare_passage_publisher(session, keys)
@@ -234,7 +237,8 @@ def test_two_workers_publish_in_order(tmp_path: Path, pace: str) -> None:
     extra: tuple[str, ...] = ("--workers", "2", "--pace", pace, "--no-mcap", "--no-rerun")
     if pace == "realtime":  # the result is due when the wheel leaves: same speed, in order
         extra += ("--physics", "stub", "--chunk-period", "0.02")
-    svc = ServiceProcess(site, listen=endpoint, recordings=tmp_path / "rec", extra_args=extra)
+    svc = ServiceProcess(site, listen=endpoint, recordings=tmp_path / "rec", extra_args=extra,
+                         start_timeout=START_TIMEOUT)
     with svc, zenoh.open(build_config(connect=[endpoint])) as session:
         assert "worker processes" in svc.output, svc.output
         sub = session.declare_subscriber(keys.all_outputs, on_output)
