@@ -33,6 +33,8 @@ from typing import TYPE_CHECKING, Any, Literal
 from schemas.diagnosis import Diagnosis, MeasuredPassage
 from schemas.messages import PassageResult, PassageSeries, RailState, WheelPassage
 from schemas.site import SiteConfig
+from service.rail_store import RailStore
+from sim_core.rail import RailProfile
 
 if TYPE_CHECKING:
     from multiprocessing.connection import Connection
@@ -190,8 +192,10 @@ class ProcessPhysics:
     """
 
     def __init__(self, site: SiteConfig, kind: str = "sim_core", *, budget: float = 30.0,
-                 warm_up: bool = True, start_timeout: float = START_TIMEOUT) -> None:
+                 warm_up: bool = True, start_timeout: float = START_TIMEOUT,
+                 store: RailStore | None = None) -> None:
         self.site = site
+        self.store = store
         self.kind = kind
         self.budget = budget
         self.warm_up_enabled = warm_up
@@ -205,6 +209,12 @@ class ProcessPhysics:
         self._snapshot: Any = None
         self._state: RailState | None = None
         self._done = 0
+        if store is not None:  # go on from the rail as the last run left it
+            self._done = store.applied_count()
+            saved = store.load()
+            if saved is not None:
+                self._snapshot = (RailProfile.sampled(saved.x, saved.y), saved.revision,
+                                  self._done)
 
     @property
     def diagnoses(self) -> bool:
@@ -300,7 +310,18 @@ class ProcessPhysics:
         elif self._snapshot is not None:
             profile, revision, _ = self._snapshot
             self._snapshot = (profile, revision, self._done)
+        if self.store is not None:  # committed before it is published
+            snap = self._snapshot
+            profile = snap[0] if dented is not None and snap is not None else None
+            revision = snap[1] if snap is not None else 0
+            self.store.commit(passage.passage_id, revision,
+                              None if profile is None else profile.x,
+                              None if profile is None else profile.y)
         return result, data, series
+
+    def already_applied(self, passage_id: str) -> int | None:
+        """The rail revision ``passage_id`` was applied at in this or an earlier run, or None."""
+        return None if self.store is None else self.store.applied_revision(passage_id)
 
     def simulate(self, passage: WheelPassage) -> PassageResult:
         return self.simulate_json(passage)[0]
@@ -346,7 +367,8 @@ class PhysicsPool:
     """
 
     def __init__(self, site: SiteConfig, kind: str = "sim_core", *, workers: int = 1,
-                 budget: float = 30.0, warm_up: bool = True) -> None:
+                 budget: float = 30.0, warm_up: bool = True,
+                 store: RailStore | None = None) -> None:
         if workers < 1:
             raise ValueError(f"workers must be >= 1, got {workers}")
         if workers > 1 and site.contact == "hertz_plastic":
@@ -354,7 +376,8 @@ class PhysicsPool:
                              "dents of the ones before")
         self.site = site
         self.kind = kind
-        self.workers = [ProcessPhysics(site, kind, budget=budget, warm_up=warm_up)
+        self.store = store
+        self.workers = [ProcessPhysics(site, kind, budget=budget, warm_up=warm_up, store=store)
                         for _ in range(workers)]
         self._idle: queue.SimpleQueue[ProcessPhysics] = queue.SimpleQueue()
         for w in self.workers:
@@ -401,6 +424,10 @@ class PhysicsPool:
             return result, data, w.rail_state(), series
 
         return self._executor.submit(self._with_worker, run)
+
+    def already_applied(self, passage_id: str) -> int | None:
+        """The rail revision ``passage_id`` was applied at (state on disk), or None."""
+        return None if self.store is None else self.store.applied_revision(passage_id)
 
     def simulate_json(self, passage: WheelPassage) -> tuple[PassageResult, bytes]:
         result, data, _, _ = self.submit(passage).result()

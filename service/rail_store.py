@@ -2,8 +2,9 @@
 
 A plastic (``hertz_plastic``) site's rail is history: every wheel that yielded it left a
 dent the next one rides over. ``RailStore`` keeps it in ``<state dir>/<site_id>.sqlite``,
-committed once per passage (WAL journal, ``synchronous=FULL``: a committed passage
-survives kill -9 and power loss), and restored at start. A passage id already applied is
+committed once per passage (WAL journal, ``synchronous=NORMAL``: a committed passage
+survives kill -9 of every process of the service; after a power cut the last few
+passages before it may be lost, not the file), and restored at start. A passage id already applied is
 recognised and never applied twice. A state file written for another site, or by another
 model version, is refused with a message saying which.
 
@@ -24,6 +25,7 @@ model version, is refused with a message saying which.
 from __future__ import annotations
 
 import sqlite3
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -61,7 +63,8 @@ class RailStore:
         self.path = directory / f"{site_id}.sqlite"
         self._db = sqlite3.connect(self.path, isolation_level=None, check_same_thread=False)
         self._db.execute("PRAGMA journal_mode=WAL")
-        self._db.execute("PRAGMA synchronous=FULL")
+        self._db.execute("PRAGMA synchronous=NORMAL")
+        self._lock = threading.Lock()
         self._db.executescript(SCHEMA)
         meta = dict(self._db.execute("SELECT key, value FROM meta").fetchall())
         if not meta:
@@ -79,7 +82,8 @@ class RailStore:
 
     def load(self) -> RailState | None:
         """The stored rail, or None if no passage has dented it yet."""
-        row = self._db.execute("SELECT revision, x, y FROM rail WHERE id = 1").fetchone()
+        with self._lock:
+            row = self._db.execute("SELECT revision, x, y FROM rail WHERE id = 1").fetchone()
         if row is None:
             return None
         rev, x, y = row
@@ -88,14 +92,20 @@ class RailStore:
 
     def applied_revision(self, passage_id: str) -> int | None:
         """The rail revision the passage was applied at, or None if it never was."""
-        row = self._db.execute("SELECT revision FROM applied WHERE passage_id = ?",
-                               (passage_id,)).fetchone()
+        with self._lock:
+            row = self._db.execute("SELECT revision FROM applied WHERE passage_id = ?",
+                                   (passage_id,)).fetchone()
         return None if row is None else int(row[0])
+
+    def applied_count(self) -> int:
+        """How many passages were applied."""
+        with self._lock:
+            return int(self._db.execute("SELECT COUNT(*) FROM applied").fetchone()[0])
 
     def commit(self, passage_id: str, revision: int, x: NDArray[np.float64] | None = None,
                y: NDArray[np.float64] | None = None) -> None:
         """Record a passage as applied at ``revision`` and, if it dented, the new rail; atomic."""
-        with self._db:
+        with self._lock, self._db:
             self._db.execute("BEGIN IMMEDIATE")
             self._db.execute("INSERT OR REPLACE INTO applied VALUES (?, ?)", (passage_id, revision))
             if x is not None and y is not None:
@@ -105,4 +115,5 @@ class RailStore:
                      np.ascontiguousarray(y, dtype=np.float64).tobytes()))
 
     def close(self) -> None:
-        self._db.close()
+        with self._lock:
+            self._db.close()

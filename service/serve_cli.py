@@ -9,10 +9,12 @@ Also runnable as ``python -m service.serve_cli ...`` (what the tests do).
 from __future__ import annotations
 
 import argparse
+import hashlib
 import os
 import re
 import secrets
 import signal
+import sqlite3
 import sys
 import threading
 import time
@@ -25,6 +27,7 @@ from service.limits import DEFAULT_PASSAGE_BUDGET, site_problem
 from service.mcap_log import DEFAULT_MAX_BYTES, DEFAULT_MAX_SECONDS
 from service.physics import PassageSimulator
 from service.physics_worker import PhysicsPool
+from service.rail_store import RailStore, StateMismatchError
 from service.recorder_process import ProcessRecorder, RecordingPlan
 from service.site import SiteFileError, load_site
 from service.twin import Twin
@@ -61,6 +64,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--passage-budget", type=float, default=DEFAULT_PASSAGE_BUDGET, metavar="S",
                    help="wall-time budget of one passage or diagnosis in the physics worker; "
                         f"past it the worker is restarted (default {DEFAULT_PASSAGE_BUDGET:g} s)")
+    p.add_argument("--state", type=Path, default=None, metavar="DIR",
+                   help="where the site's rail state and applied passage ids persist "
+                        "(SQLite <site_id>.sqlite; default RECORDINGS/state, i.e. "
+                        "recordings/state)")
+    p.add_argument("--no-state", action="store_true",
+                   help="keep no state: the rail starts afresh, ids are not remembered")
     p.add_argument("--workers", type=int, default=1, metavar="N",
                    help="physics worker processes (default 1); passages of an elastic site "
                         "(hertz, johnson) are simulated N at a time and published in order; a "
@@ -98,6 +107,18 @@ def one_line(exc: BaseException) -> str:
     return text[:300]
 
 
+def open_state(directory: Path, site: Any) -> RailStore:
+    """The site's state store; refuses one written for another site file or version."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        pkg = version("railtwin")
+    except PackageNotFoundError:
+        pkg = "unknown"
+    digest = hashlib.sha256(site.model_dump_json().encode()).hexdigest()[:16]
+    return RailStore(directory, site.site_id, f"railtwin {pkg}, site file {digest}")
+
+
 def run(args: argparse.Namespace) -> int:
     """Serve until SIGINT/SIGTERM; exit status 0 on a clean stop, 2 on a bad site file,
     1 when the Zenoh session cannot be opened (e.g. the port is taken)."""
@@ -132,7 +153,17 @@ def run(args: argparse.Namespace) -> int:
         if warm_up is not None:
             print(f"railtwin serve: physics warmed up in {warm_up():.1f} s", flush=True)
     else:  # the compiled physics holds the GIL: it runs in a worker process
-        worker = PhysicsPool(site, args.physics, workers=workers, budget=args.passage_budget)
+        store = None
+        if not args.no_state:
+            try:
+                store = open_state(args.state or args.recordings / "state", site)
+            except (StateMismatchError, OSError, sqlite3.Error) as exc:
+                print(f"railtwin serve: state: {exc}", file=sys.stderr)
+                return 2
+            print(f"railtwin serve: state {store.path} ({store.applied_count()} passages "
+                  "applied before)", flush=True)
+        worker = PhysicsPool(site, args.physics, workers=workers, budget=args.passage_budget,
+                             store=store)
         seconds = worker.start()
         physics = worker
         pids = ", ".join(str(p) for p in worker.pids)

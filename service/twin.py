@@ -406,6 +406,8 @@ class Twin:
             ))
             return
         self._log_input(item, passage)
+        if self._already_applied(item, passage):
+            return
         self._keep_passage(passage)
         try:
             self._simulate(item, passage)
@@ -479,6 +481,27 @@ class Twin:
                 self.recorder.dent(result.passage_id, rail_after or self.physics.rail_state())
 
     # --- diagnosis ---------------------------------------------------------------------
+
+    def _already_applied(self, item: Inbound, passage: WheelPassage) -> bool:
+        """A passage id seen before (this run, or applied in an earlier one) is not applied
+        twice: it gets an error saying so."""
+        pid = passage.passage_id
+        where = "earlier in this run" if pid in self._passages else None
+        applied = getattr(self.physics, "already_applied", None)
+        revision = applied(pid) if applied is not None and where is None else None
+        if revision is not None:
+            where = f"at rail revision {revision} (state on disk)"
+        if where is None:
+            return False
+        self._publish_error(ServiceError(
+            site_id=self.site.site_id, kind="invalid_passage",
+            message=f"passage_id {pid!r} was already received {where}: not applied twice",
+            field="passage_id",
+            problems=[FieldProblem(field="passage_id", message="duplicate passage id",
+                                   type="duplicate")],
+            passage_id=pid, received_at=item.received_ns / 1e9,
+        ))
+        return True
 
     def _keep_passage(self, passage: WheelPassage) -> None:
         kept = self._passages

@@ -91,6 +91,8 @@ def bad_inputs() -> list[tuple[bytes, str, str | None]]:
          "invalid_passage", "mass"),
         (json.dumps({**good, "passage_id": "b3", "mass": -600.0}).encode(),
          "invalid_passage", "mass"),
+        # the first passage again: a passage id is never applied twice
+        (passages()[0].model_dump_json().encode(), "invalid_passage", "passage_id"),
     ]
 
 
@@ -220,9 +222,9 @@ def test_bad_input_gets_an_error_naming_the_field(first_run: Run) -> None:
 def test_health_and_rail_queryables(first_run: Run) -> None:
     (h,) = [h for h in first_run.health if h.site_id == SITE_ID]
     assert h.passages_done == 4
-    assert h.errors == 4
-    assert h.passages_received == 8
-    assert h.last_error is not None and h.last_error.field == "mass"
+    assert h.errors == len(bad_inputs())
+    assert h.passages_received == 4 + len(bad_inputs())
+    assert h.last_error is not None and h.last_error.field == bad_inputs()[-1][2]
     rail = first_run.rail
     assert rail is not None
     flat = first_run.collector.outcomes["flat"].result
@@ -238,8 +240,9 @@ def test_mcap_holds_every_message_and_validates(first_run: Run) -> None:
     topics = Counter(m.topic for m in logged)
     p = KEYS.prefix
     assert topics == {
-        f"{p}/passage": 4, f"{p}/passage/rejected": 4, f"{p}/force": 4,
-        f"{p}/indentation": 4, f"{p}/result": 4, f"{p}/error": 4,
+        # the duplicate is logged as a valid passage (it is one), then refused
+        f"{p}/passage": 5, f"{p}/passage/rejected": 4, f"{p}/force": 4,
+        f"{p}/indentation": 4, f"{p}/result": 4, f"{p}/error": 5,
     }
     for m in logged:
         decode(m)  # validates against the channel's schema
