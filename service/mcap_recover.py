@@ -24,6 +24,8 @@ with ``mcap.stream_reader.StreamReader`` and stops at the first damaged record, 
 
 from __future__ import annotations
 
+import base64
+import json
 import struct
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -33,7 +35,11 @@ from mcap.exceptions import McapError
 from mcap.records import Channel, Message, Schema
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
+from pydantic import BaseModel
 
+from schemas.diagnosis import MeasuredPassage
+from schemas.messages import MESSAGE_MODELS, RejectedInput, WheelPassage, encoding_schema
+from service.input_journal import read_journal
 from service.mcap_log import LoggedMessage
 
 __all__ = ["RecoveryReport", "read_any", "recover", "salvage"]
@@ -45,6 +51,7 @@ class RecoveryReport:
 
     messages: int = 0
     files: int = 0
+    from_journal: int = 0
     damaged: list[str] = field(default_factory=list)
 
 
@@ -80,11 +87,45 @@ def read_any(paths: list[Path]) -> Iterator[LoggedMessage]:
     yield from msgs
 
 
+def _raw_input(m: LoggedMessage) -> bytes | None:
+    """The payload as received, for a logged input (valid or rejected); None otherwise."""
+    if m.schema_name == encoding_schema(RejectedInput):
+        try:
+            return base64.b64decode(RejectedInput.model_validate_json(m.data).payload_base64)
+        except ValueError:  # not what its schema says: compared as it is
+            return m.data
+    if m.schema_name in (encoding_schema(WheelPassage), encoding_schema(MeasuredPassage)):
+        return m.data
+    return None
+
+
+def journal_messages(path: Path) -> Iterator[LoggedMessage]:
+    """A journal's inputs as the twin logs them: valid ones on their key, the others as
+    ``RejectedInput`` on ``<key>/rejected``."""
+    for e in read_journal(path):
+        model: type[BaseModel] = MeasuredPassage if e.key.endswith("/measured") else WheelPassage
+        try:
+            model.model_validate_json(e.payload)
+        except ValueError:
+            rejected = RejectedInput(
+                key=e.key, payload_base64=base64.b64encode(e.payload).decode("ascii"),
+                payload_text=e.payload.decode("utf-8", errors="replace"))
+            yield LoggedMessage(f"{e.key}/rejected", encoding_schema(RejectedInput),
+                                e.received_ns, rejected.model_dump_json().encode())
+            continue
+        yield LoggedMessage(e.key, encoding_schema(model), e.received_ns, e.payload)
+
+
 def recover(paths: list[Path], out: Path) -> RecoveryReport:
-    """Write every salvageable message of ``paths`` (in log-time order) to a complete ``out``."""
+    """Write every salvageable message of ``paths`` (in log-time order) to a complete ``out``.
+
+    ``.journal`` files (``service.input_journal``) add the inputs the MCAP files lack.
+    """
     report = RecoveryReport()
     msgs: list[LoggedMessage] = []
     schema_data: dict[str, tuple[str, bytes]] = {}
+    journals = [p for p in paths if p.suffix == ".journal"]
+    paths = [p for p in paths if p.suffix != ".journal"]
     for p in sorted(paths):
         report.files += 1
         with p.open("rb") as f:
@@ -95,6 +136,21 @@ def recover(paths: list[Path], out: Path) -> RecoveryReport:
             except (McapError, struct.error, EOFError, ValueError):
                 pass
         msgs.extend(salvage(p, report))
+    have = ({(m.log_time_ns, raw) for m in msgs if (raw := _raw_input(m)) is not None}
+            if journals else set())
+    for j in sorted(journals):
+        report.files += 1
+        for m in journal_messages(j):
+            raw = _raw_input(m)
+            if (m.log_time_ns, raw) not in have:
+                msgs.append(m)
+                report.from_journal += 1
+    for m in msgs:
+        if m.schema_name not in schema_data:
+            model = MESSAGE_MODELS.get(m.schema_name.removeprefix("railtwin.").split("/")[0])
+            if model is not None:
+                schema_data[m.schema_name] = (
+                    "jsonschema", json.dumps(model.model_json_schema()).encode())
     msgs.sort(key=lambda m: m.log_time_ns)
     tmp = out.with_suffix(out.suffix + ".partial")
     with tmp.open("wb") as f:

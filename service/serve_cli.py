@@ -23,6 +23,7 @@ from typing import Any
 
 import zenoh
 
+from service.input_journal import InputJournal
 from service.limits import DEFAULT_PASSAGE_BUDGET, site_problem
 from service.mcap_log import DEFAULT_MAX_BYTES, DEFAULT_MAX_SECONDS
 from service.physics import PassageSimulator
@@ -191,6 +192,8 @@ def _serve(args: argparse.Namespace, site: Any, cfg: zenoh.Config, listen: list[
             mcap_max_bytes=int(args.mcap_max_mb * 2**20), mcap_max_seconds=args.mcap_max_seconds,
         ))
 
+    # every input on disk before it is queued: recover merges it into a cut MCAP
+    journal = None if args.no_mcap else InputJournal(args.recordings / f"{stem}-inputs.journal")
     stop = threading.Event()
 
     def on_signal(signum: int, _frame: Any) -> None:
@@ -207,7 +210,7 @@ def _serve(args: argparse.Namespace, site: Any, cfg: zenoh.Config, listen: list[
                 recorder.close()
             return 1
         with session:
-            twin = Twin(site, session, physics, recorder=recorder, pace=args.pace,
+            twin = Twin(site, session, physics, recorder=recorder, journal=journal, pace=args.pace,
                         chunk_period=args.chunk_period, queue_capacity=args.queue)
             twin.start()
             where = ", ".join(listen) if listen else "(from config)"
@@ -228,6 +231,8 @@ def _serve(args: argparse.Namespace, site: Any, cfg: zenoh.Config, listen: list[
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)
+        if journal is not None:
+            journal.close()
     if recorder is not None:
         for f in sorted(args.recordings.glob(f"{stem}-*.mcap")):
             print(f"railtwin serve: MCAP log {f}", flush=True)

@@ -60,6 +60,7 @@ from schemas.messages import (
 )
 from schemas.site import SiteConfig
 from service import limits
+from service.input_journal import InputJournal
 from service.keyspace import HEALTH_KEY, SiteKeys
 from service.physics import PassageSimulator
 from service.physics_worker import (
@@ -177,11 +178,13 @@ class Twin:
         physics: PassageSimulator,
         *,
         recorder: RecorderFront | None = None,
+        journal: InputJournal | None = None,
         pace: Pace = "fast",
         chunk_period: float = 0.02,
         queue_capacity: int = 10_000,
     ) -> None:
         self.site = site
+        self.journal = journal
         self.keys = SiteKeys(site.site_id)
         self.session = session
         self.physics = physics
@@ -285,6 +288,10 @@ class Twin:
         received_ns, received_mono = time.time_ns(), time.monotonic()
         key = str(sample.key_expr)
         too_large = limits.payload_problem(len(sample.payload), measured)
+        if self.journal is not None:  # on disk before it is queued (survives kill -9)
+            raw = sample.payload.to_bytes()
+            self.journal.append(key, received_ns,
+                                raw if too_large is None else raw[:LOGGED_PREFIX_BYTES])
         if too_large is not None:  # refused unread: only its first bytes are logged
             head = sample.payload.to_bytes()[:LOGGED_PREFIX_BYTES]
             item = Inbound(key, head, received_ns, received_mono)

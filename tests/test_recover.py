@@ -56,3 +56,32 @@ def test_recover_refuses_to_overwrite_its_input(tmp_path: Path) -> None:
     assert cli_main(["recover", str(path), "--out", str(path)]) == 2
     assert cli_main(["recover", str(tmp_path / "missing.mcap"), "--out",
                      str(tmp_path / "o.mcap")]) == 2
+
+
+def test_the_journal_adds_back_the_inputs_the_recorder_never_wrote(tmp_path: Path) -> None:
+    """kill -9 of every process: the MCAP lost its last inputs, the journal has them all."""
+    from schemas.messages import WheelPassage
+    from service.input_journal import InputJournal
+
+    good = WheelPassage(passage_id="p0", train_id="t", axle_index=0, side="right",
+                        timestamp=0.0, speed=30.0, load=5e4, mass=500.0, radius=0.46)
+    key = "railtwin/x/passage"
+    payloads = [good.model_copy(update={"passage_id": f"p{i}"}).model_dump_json().encode()
+                for i in range(6)] + [b"not json"]
+    journal = InputJournal(tmp_path / "run-inputs.journal")
+    log = McapLog(tmp_path, "run")
+    for i, data in enumerate(payloads):
+        journal.append(key, 1_000 + i, data)
+        if i < 3:  # the recorder wrote only the first three before the crash
+            log.write(key, WheelPassage, data, 1_000 + i)
+    log.flush()
+    journal.close()
+    with (tmp_path / "run-inputs.journal").open("ab") as f:
+        f.write(b"RTJ1\x05\x00")  # a record torn by the kill
+    out = tmp_path / "fixed.mcap"
+    code = cli_main(["recover", str(log.files[0]), str(tmp_path / "run-inputs.journal"),
+                     "--out", str(out)])
+    assert code == 0
+    with out.open("rb") as f:
+        got = [(c.topic, m.log_time) for _, c, m in make_reader(f).iter_messages()]
+    assert got == [(key, 1_000 + i) for i in range(6)] + [(f"{key}/rejected", 1_006)]

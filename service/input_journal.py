@@ -1,0 +1,88 @@
+"""The input journal: every received payload on disk before it is queued.
+
+The MCAP log is written by a recorder process from a queue in memory; a kill -9 of
+every process of the service would lose what is still in that queue. So the Zenoh
+callback first appends each input, as it came, to ``<run>-inputs.journal`` with one
+``write`` system call (the operating system keeps it once the call returns, whatever
+happens to the process), and only then queues it. ``railtwin recover`` merges a run's
+journal into its MCAP: inputs the recorder never wrote are added back.
+
+Record: magic ``RTJ1``, key length (u16), payload length (u32), received time (u64 ns),
+key, payload, CRC-32 of everything before it (little endian). A torn last record
+(the process died inside ``write``) fails its length or CRC and ends the reading.
+
+    >>> import tempfile
+    >>> from pathlib import Path
+    >>> p = Path(tempfile.mkdtemp()) / "run-inputs.journal"
+    >>> j = InputJournal(p)
+    >>> j.append("railtwin/km12/passage", 17, b'{"a": 1}')
+    >>> j.close()
+    >>> [(e.key, e.received_ns, e.payload) for e in read_journal(p)]
+    [('railtwin/km12/passage', 17, b'{"a": 1}')]
+"""
+
+from __future__ import annotations
+
+import os
+import struct
+import threading
+import zlib
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+__all__ = ["InputJournal", "JournalEntry", "read_journal"]
+
+MAGIC = b"RTJ1"
+_HEAD = struct.Struct("<4sHIQ")
+_CRC = struct.Struct("<I")
+
+
+@dataclass(frozen=True)
+class JournalEntry:
+    """One received input: its key, when (UNIX ns) and its bytes."""
+
+    key: str
+    received_ns: int
+    payload: bytes
+
+
+class InputJournal:
+    """Append-only, one ``write`` per input; safe to call from several Zenoh callbacks."""
+
+    def __init__(self, path: Path) -> None:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        self.path = path
+        self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
+        self._lock = threading.Lock()
+
+    def append(self, key: str, received_ns: int, payload: bytes) -> None:
+        k = key.encode()[:65535]
+        body = _HEAD.pack(MAGIC, len(k), len(payload), received_ns) + k + payload
+        record = body + _CRC.pack(zlib.crc32(body))
+        with self._lock:
+            if self._fd >= 0:
+                os.write(self._fd, record)
+
+    def close(self) -> None:
+        with self._lock:
+            if self._fd >= 0:
+                os.close(self._fd)
+                self._fd = -1
+
+
+def read_journal(path: Path) -> Iterator[JournalEntry]:
+    """The complete records of a journal, in order (stops at a torn one)."""
+    data = path.read_bytes()
+    pos = 0
+    while pos + _HEAD.size <= len(data):
+        magic, klen, plen, ns = _HEAD.unpack_from(data, pos)
+        end = pos + _HEAD.size + klen + plen
+        if magic != MAGIC or end + _CRC.size > len(data):
+            return
+        (crc,) = _CRC.unpack_from(data, end)
+        if crc != zlib.crc32(data[pos:end]):
+            return
+        key = data[pos + _HEAD.size:pos + _HEAD.size + klen].decode(errors="replace")
+        yield JournalEntry(key, ns, data[pos + _HEAD.size + klen:end])
+        pos = end + _CRC.size
