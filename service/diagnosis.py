@@ -73,6 +73,22 @@ class Diagnoser:
         self.limits = Limits(cfg.watch_force, cfg.inspect_force, cfg.remove_force,
                              cfg.watch_length, cfg.inspect_length, cfg.remove_length)
 
+    def warm_up(self) -> float:
+        """Diagnose one synthetic flat wheel (compiles the fit's kernels); returns seconds."""
+        from sim_core.diagnosis.synthetic import Perturbations, synthetic_measurement
+
+        start = time.perf_counter()
+        probe = WheelPassage(passage_id="warm-up", train_id="warm-up", axle_index=0,
+                             side="right", timestamp=0.0, speed=30.0, load=60e3, mass=600.0,
+                             radius=0.46)
+        wheel = self.wheel(probe)
+        rate = self.site.diagnosis.sample_rate or 10_000.0
+        m = synthetic_measurement(wheel, probe.speed, Flat.ideal(0.46, 0.04, 1.0),
+                                  self.physics.base_rail, self.site.length, rate, self.sensor,
+                                  Perturbations(roughness_rms=0.0, seed=0))
+        estimate_flat(wheel, probe.speed, m.t, m.force, self.sensor)
+        return time.perf_counter() - start
+
     def wheel(self, passage: WheelPassage) -> WheelOnSite:
         return WheelOnSite(passage.mass, passage.load, passage.radius,
                            self.physics.contact_model(passage), self.physics.foundation,

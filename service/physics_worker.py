@@ -149,6 +149,7 @@ def _child_main(site: SiteConfig, kind: str, conn: Connection, snapshot: Any) ->
                     from service.diagnosis import Diagnoser
 
                     diagnoser = Diagnoser(site, physics=physics)
+                    diagnoser.warm_up()
                 conn.send(("ok", time.perf_counter() - start, physics.rail_state()))
             elif op == "simulate":
                 result = physics.simulate(msg[1])

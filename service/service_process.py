@@ -35,7 +35,7 @@ class ServiceProcess:
         listen: str,
         recordings: Path,
         extra_args: tuple[str, ...] = (),
-        start_timeout: float = 60.0,
+        start_timeout: float = 300.0,
         echo: bool = False,
     ) -> None:
         self.args = [

@@ -34,7 +34,7 @@ from schemas.scenario import (
     StepRail,
 )
 from schemas.site import SiteConfig
-from sim_core.constraint import tabulate_constraint
+from sim_core.constraint import tabulate_constraint, warm_up_constraint
 from sim_core.constraint_table import ConstraintTable
 from sim_core.contact_laws import ContactLaw, ContactModel
 from sim_core.dents import dent_profile, dented_rail
@@ -144,6 +144,10 @@ class SitePhysics:
             foundation=self.foundation, initial=None, rtol=self.site.rtol,
         )
         simulate_passage(self._table(probe, self._rail), spec)
+        # every constraint path a wheel may take, so that no wheel pays for compilation
+        warm_up_constraint()
+        flat = probe.model_copy(update={"outline": FlatOutline(kind="flat", length=0.03)})
+        self._table(flat, self._rail)
         return time.perf_counter() - start
 
     def simulate(self, passage: WheelPassage) -> PassageResult:

@@ -45,3 +45,16 @@ def run_cli_subprocess(*args: str, stdin: str | None = None) -> subprocess.Compl
 @pytest.fixture
 def cli() -> Callable[..., subprocess.CompletedProcess[str]]:
     return run_cli_subprocess
+
+
+def pytest_sessionstart(session: pytest.Session) -> None:
+    """Fill numba's compile cache before any test starts a service.
+
+    Every ``railtwin serve`` warms up every constraint path in its worker process; from an
+    empty cache (a fresh CI machine) that compiles for a minute or two, which would count
+    against the first service test's start-up time. Compiled once here, each later
+    process loads it from the cache in about a second.
+    """
+    from sim_core.constraint import warm_up_constraint
+
+    warm_up_constraint()
