@@ -108,8 +108,8 @@ _E3 = dop853.E3
 _E5 = dop853.E5
 
 
-@numba.njit(cache=True)
-def rk_step(
+@numba.njit(cache=True, inline="always")
+def _dop853(
     t: float,
     y: NDArray[np.float64],
     h: float,
@@ -118,16 +118,13 @@ def rk_step(
     par: Params,
     tab: Table,
     hint: int,
+    nc: int,
 ) -> tuple[float, int]:
-    """One DOP853 step from (t, y) with K[0] = f(t, y); fills K[1..12], ynew; returns (error norm, hint).
-
-    K rows hold (v_C, a_C, v_M, a_M); dstage[i] is δ at stage i (NaN in flight).
-    """
+    """``rk_step`` for ``nc`` state components (2: the wheel alone; 4: with the foundation)."""
     K = w.K
     tmp = w.tmp
     ynew = w.ynew
     dstage = w.dstage
-    nc = 4 if par.compliant else 2
     for s in range(1, 12):
         for j in range(nc):
             acc = 0.0
@@ -172,6 +169,28 @@ def rk_step(
         return 0.0, hint
     denom = err5 + 0.01 * err3
     return abs(h) * err5 / math.sqrt(denom * nc), hint
+
+
+@numba.njit(cache=True)
+def rk_step(
+    t: float,
+    y: NDArray[np.float64],
+    h: float,
+    mode: int,
+    w: Work,
+    par: Params,
+    tab: Table,
+    hint: int,
+) -> tuple[float, int]:
+    """One DOP853 step from (t, y) with K[0] = f(t, y); fills K[1..12], ynew; returns (error norm, hint).
+
+    K rows hold (v_C, a_C, v_M, a_M); dstage[i] is δ at stage i (NaN in flight). The
+    kernel is compiled once per component count: a constant count lets the compiler
+    unroll the stage sums.
+    """
+    if par.compliant:
+        return _dop853(t, y, h, mode, w, par, tab, hint, 4)
+    return _dop853(t, y, h, mode, w, par, tab, hint, 2)
 
 
 @numba.njit(cache=True)
