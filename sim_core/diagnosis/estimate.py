@@ -22,8 +22,9 @@ the lower cost. The length interval is where the cost stays within the 95 % band
 χ² profile, J(l) <= J_min·(1 + 3.84/N_eff), widened by the speed's 1 % uncertainty.
 A flat is reported only if it explains the windows significantly better than a round
 wheel, (J_round - J_flat)/(J_flat/N_eff) >= ``detection``, and is at least the detection
-floor long: 8 mm below 75 km/h, 16 mm above (where a few µm of unknown rail roughness
-excite as much dynamic force as a 10-15 mm flat; measured on the tuning set), unless it
+floor long (``detection_floor``: 6 mm up to 30 km/h, 17 mm from 100 km/h, linear between:
+a few µm of unknown rail roughness excite as much dynamic force as a 10-15 mm flat at
+speed; measured on the tuning set), unless it
 stands out of its own record: its *contrast*, the significance over the largest
 significance of the same flat fitted a fraction of a turn away (``NULL_OFFSETS``), is at
 least ``contrast`` (round wheels of the tuning set reached 7.7).
@@ -88,9 +89,9 @@ class FitOptions:
     lengths: tuple[float, ...] = LENGTH_GRID
     kinds: tuple[FlatKind, ...] = ("flat", "rounded_flat")
     refine_evaluations: int = 7
-    min_length: float = 0.008
-    min_length_fast: float = 0.016
-    fast_speed: float = 75.0 / 3.6
+    min_length: float = 0.006
+    min_length_fast: float = 0.017
+    floor_speeds: tuple[float, float] = (30.0 / 3.6, 100.0 / 3.6)
     contrast: float = 20.0
     min_length_contrast: float = 0.005
     detection: float = 40.0
@@ -337,6 +338,19 @@ def _contrast(prob: _Problem, best: Candidate, before: float, after: float,
     return significance / worst
 
 
+def detection_floor(speed: float, options: FitOptions = DEFAULT_OPTIONS) -> float:
+    """The shortest flat reported without standing out of its record (m): ``min_length`` up
+    to the first of ``floor_speeds``, ``min_length_fast`` from the second, linear between.
+
+    On the tuning set (seeds 7-9), round wheels on 1-5 µm of unknown roughness were best
+    fitted by flats of 5.4-6.6 mm below 75 km/h, 8.8-10.5 mm at 85-100 km/h and up to
+    15.8 mm above: the dynamic force of the roughness grows with speed.
+    """
+    v0, v1 = options.floor_speeds
+    u = min(max((speed - v0) / (v1 - v0), 0.0), 1.0)
+    return options.min_length + u * (options.min_length_fast - options.min_length)
+
+
 def _refine(prob: _Problem, kind: FlatKind, ln: float, z: float, zetas: tuple[float, ...],
             grid: tuple[float, ...], options: FitOptions, rounds: int) -> Candidate:
     """Alternate golden sections on the damping ratio and the length of one kind.
@@ -517,7 +531,7 @@ def estimate_flat(
     # the detection floor: above ~75 km/h a few µm of unknown roughness excite as much dynamic
     # force as a 10-15 mm flat (tuning set: round wheels fitted up to 14.7 mm there)
     contrast = _contrast(prob, best, before, after, significance, rate, sensor)
-    floor = options.min_length_fast if v >= options.fast_speed else options.min_length
+    floor = detection_floor(v, options)
     # below the floor, a flat is reported only if it stands out of its own record: its
     # once-per-turn windows fit it far better than windows a fraction of a turn away
     standout = contrast >= options.contrast and best.length >= options.min_length_contrast
