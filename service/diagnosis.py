@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 from schemas.diagnosis import Diagnosis, FlatFinding, MeasuredPassage
 from schemas.messages import WheelPassage
 from schemas.site import SiteConfig
+from service.measurement_error import MeasurementError
 from service.site_physics import SitePhysics
 from sim_core.diagnosis.estimate import FlatEstimate, estimate_flat
 from sim_core.diagnosis.forward import (
@@ -37,15 +38,6 @@ MIN_RECORD_FRACTION = 0.5
 
 SPEED_MISMATCH = 0.05
 """A measured speed further than this (relative) from the passage's is refused."""
-
-
-class MeasurementError(ValueError):
-    """A measurement that cannot be diagnosed; ``field`` names what is wrong."""
-
-    def __init__(self, field: str, message: str) -> None:
-        super().__init__(f"{field}: {message}")
-        self.field = field
-        self.message = message
 
 
 @dataclass(frozen=True)

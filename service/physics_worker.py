@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any, Literal
 from schemas.diagnosis import Diagnosis, MeasuredPassage
 from schemas.messages import PassageResult, PassageSeries, RailState, WheelPassage
 from schemas.site import SiteConfig
+from service.measurement_error import MeasurementError
 from service.rail_store import RailStore
 from sim_core.rail import RailProfile
 
@@ -55,15 +56,6 @@ class BudgetExceededError(RuntimeError):
 
 class WorkerCrashedError(RuntimeError):
     """The worker process died during a call (e.g. killed for memory); it was restarted."""
-
-
-class MeasurementRefusedError(ValueError):
-    """A measurement that cannot be diagnosed; ``field`` names what is wrong."""
-
-    def __init__(self, field: str, message: str) -> None:
-        super().__init__(f"{field}: {message}")
-        self.field = field
-        self.message = message
 
 
 @dataclass(frozen=True)
@@ -110,13 +102,9 @@ def make_physics(kind: str, site: SiteConfig) -> Any:
 
 def diagnose_locally(diagnoser: Any, passage: WheelPassage,
                      measured: MeasuredPassage) -> DiagnosisOutcome:
-    """Run ``service.diagnosis.Diagnoser.diagnose`` and keep what the twin needs."""
-    from service.diagnosis import MeasurementError
-
-    try:
-        diag, curves = diagnoser.diagnose(passage, measured)
-    except MeasurementError as exc:
-        raise MeasurementRefusedError(exc.field, exc.message) from exc
+    """Run ``service.diagnosis.Diagnoser.diagnose`` and keep what the twin needs (a
+    ``MeasurementError`` goes to the twin as it is)."""
+    diag, curves = diagnoser.diagnose(passage, measured)
     impacts_x = curves.impacts_t * curves.estimate.speed
     return DiagnosisOutcome(diag, curves.t.tolist(), curves.measured.tolist(),
                             curves.fitted.tolist(), curves.x.tolist(), impacts_x.tolist())
@@ -175,7 +163,7 @@ def _child_main(site: SiteConfig, kind: str, conn: Connection, snapshot: Any) ->
                 return
             else:
                 conn.send(("internal", f"unknown request {op!r}"))
-        except MeasurementRefusedError as exc:
+        except MeasurementError as exc:
             conn.send(("refused", exc.field, exc.message))
         except (ValueError, ArithmeticError, ValidationError) as exc:
             conn.send(("failed", str(exc)))
@@ -287,7 +275,7 @@ class ProcessPhysics:
         if kind == "ok":
             return reply
         if kind == "refused":
-            raise MeasurementRefusedError(reply[1], reply[2])
+            raise MeasurementError(reply[1], reply[2])
         if kind == "failed":
             raise ValueError(reply[1])
         raise RuntimeError(f"{what}: {reply[1]}")

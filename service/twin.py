@@ -66,7 +66,7 @@ from service.physics import PassageSimulator
 from service.physics_worker import (
     BudgetExceededError,
     DiagnosisOutcome,
-    MeasurementRefusedError,
+    MeasurementError,
     Series,
     WorkerCrashedError,
     diagnose_locally,
@@ -579,7 +579,7 @@ class Twin:
             self._ordered.join()  # the passage's result goes out first
         try:
             outcome = self.diagnoser(passage, measured)
-        except MeasurementRefusedError as exc:
+        except MeasurementError as exc:
             self._measurement_error(item, "invalid_measurement",
                                     f"measurement of {pid} rejected: {exc}", pid, exc.field)
             return
