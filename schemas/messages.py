@@ -33,14 +33,7 @@ from pydantic import BaseModel, Field, field_validator, model_validator
 
 from schemas._base import Finite, NonNegative, Positive, StrictModel, field_error
 from schemas.result import Summary, Transition
-from schemas.scenario import (
-    TWO_PI,
-    FlatOutline,
-    Outline,
-    RoundedFlatOutline,
-    RoundOutline,
-    SampledOutline,
-)
+from schemas.scenario import TWO_PI, Outline, RoundOutline, check_outline_fits
 
 MESSAGE_SCHEMA_VERSION: Literal["1.0"] = "1.0"
 """Version of the service's messages; a consumer accepts the same major version."""
@@ -117,32 +110,6 @@ class WheelPassage(StrictModel):
         """The outline must fit this wheel (else it validates but cannot be simulated)."""
         check_outline_fits(self.outline, self.radius)
         return self
-
-
-def check_outline_fits(o: Outline, r: float) -> None:
-    """Raise a field error when the outline does not fit a wheel of radius ``r`` (MODEL.md §2)."""
-    if isinstance(o, FlatOutline) and not o.length < 2.0 * r:
-        raise field_error(
-            "outline.length",
-            f"flat length {o.length!r} m must be < 2·radius = {2.0 * r!r} m "
-            "(a chord cannot be longer than the diameter)",
-        )
-    if isinstance(o, RoundedFlatOutline):
-        if not o.depth < r:
-            raise field_error("outline.depth", f"depth {o.depth!r} m must be < radius = {r!r} m")
-        if not o.length < TWO_PI * r:
-            raise field_error(
-                "outline.length",
-                f"length {o.length!r} m must be < 2π·radius = {TWO_PI * r!r} m (the circumference)",
-            )
-    if isinstance(o, SampledOutline):
-        for i, ri in enumerate(o.radius):
-            if abs(ri - r) > 0.1 * r:
-                raise field_error(
-                    f"outline.radius[{i}]",
-                    f"{ri!r} m is more than 10 % away from the wheel radius {r!r} m "
-                    "(a sampled outline is an out-of-roundness around R)",
-                )
 
 
 # --- out -----------------------------------------------------------------------------------

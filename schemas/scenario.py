@@ -149,34 +149,34 @@ class Wheel(StrictModel):
 
     @model_validator(mode="after")
     def _check_geometry(self) -> Wheel:
-        o = self.outline
-        r = self.radius
-        if isinstance(o, FlatOutline) and not o.length < 2.0 * r:
+        check_outline_fits(self.outline, self.radius)
+        return self
+
+
+def check_outline_fits(o: Outline, r: float) -> None:
+    """Raise a field error when the outline does not fit a wheel of radius ``r`` (MODEL.md §2)."""
+    if isinstance(o, FlatOutline) and not o.length < 2.0 * r:
+        raise field_error(
+            "outline.length",
+            f"flat length {o.length!r} m must be < 2·radius = {2.0 * r!r} m "
+            "(a chord cannot be longer than the diameter)",
+        )
+    if isinstance(o, RoundedFlatOutline):
+        if not o.depth < r:
+            raise field_error("outline.depth", f"depth {o.depth!r} m must be < radius = {r!r} m")
+        if not o.length < TWO_PI * r:
             raise field_error(
                 "outline.length",
-                f"flat length {o.length!r} m must be < 2·radius = {2.0 * r!r} m "
-                "(a chord cannot be longer than the diameter)",
+                f"length {o.length!r} m must be < 2π·radius = {TWO_PI * r!r} m (the circumference)",
             )
-        if isinstance(o, RoundedFlatOutline):
-            if not o.depth < r:
+    if isinstance(o, SampledOutline):
+        for i, ri in enumerate(o.radius):
+            if abs(ri - r) > 0.1 * r:
                 raise field_error(
-                    "outline.depth", f"depth {o.depth!r} m must be < radius = {r!r} m"
+                    f"outline.radius[{i}]",
+                    f"{ri!r} m is more than 10 % away from the wheel radius {r!r} m "
+                    "(a sampled outline is an out-of-roundness around R)",
                 )
-            if not o.length < TWO_PI * r:
-                raise field_error(
-                    "outline.length",
-                    f"length {o.length!r} m must be < 2π·radius = {TWO_PI * r!r} m "
-                    "(the circumference)",
-                )
-        if isinstance(o, SampledOutline):
-            for i, ri in enumerate(o.radius):
-                if abs(ri - r) > 0.1 * r:
-                    raise field_error(
-                        f"outline.radius[{i}]",
-                        f"{ri!r} m is more than 10 % away from the wheel radius {r!r} m "
-                        "(a sampled outline is an out-of-roundness around R)",
-                    )
-        return self
 
 
 # --- rail profiles --------------------------------------------------------------------------
