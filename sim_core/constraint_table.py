@@ -94,24 +94,16 @@ class ConstraintTable:
 
     def evaluate(self, xq: NDArray[np.float64]) -> NDArray[np.float64]:
         """y_C^k at the positions ``xq`` (vectorised)."""
-        xq = np.asarray(xq, dtype=np.float64)
-        out = np.empty(xq.shape)
-        _evaluate_many(
-            self.x,
-            self.y,
-            self.slope_left,
-            self.slope_right,
-            self.period,
-            xq.ravel(),
-            out.ravel(),
-            _NONE,
-        )
-        return out
+        return self._look_up(xq, slope=False)
 
     def slope(self, xq: NDArray[np.float64]) -> NDArray[np.float64]:
         """dy_C^k/dx at ``xq`` (right-sided at kinks)."""
+        return self._look_up(xq, slope=True)
+
+    def _look_up(self, xq: NDArray[np.float64], *, slope: bool) -> NDArray[np.float64]:
         xq = np.asarray(xq, dtype=np.float64)
         out = np.empty(xq.shape)
+        values, slopes = (_NONE, out.ravel()) if slope else (out.ravel(), _NONE)
         _evaluate_many(
             self.x,
             self.y,
@@ -119,8 +111,8 @@ class ConstraintTable:
             self.slope_right,
             self.period,
             xq.ravel(),
-            _NONE,
-            out.ravel(),
+            values,
+            slopes,
         )
         return out
 

@@ -141,13 +141,7 @@ def contact_force(
     delta: float, law: int, c: float, f_y: float, d_y: float, theta_y: float
 ) -> float:
     """Loading-branch force of any law at indentation δ (MODEL.md §3)."""
-    if delta <= 0.0:
-        return 0.0
-    if law == HERTZ or delta <= d_y:
-        return c * delta * math.sqrt(delta)
-    if law == JOHNSON:
-        return johnson_plastic_force(delta, f_y, d_y, theta_y)
-    return f_y
+    return mode_force(delta, law != HERTZ and delta > d_y, law, c, f_y, d_y, theta_y)
 
 
 @numba.njit(cache=True, inline="always")

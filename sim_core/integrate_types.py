@@ -29,6 +29,7 @@ Worked example:
 
 from __future__ import annotations
 
+import functools
 from enum import IntEnum
 from typing import NamedTuple, get_type_hints
 
@@ -172,13 +173,19 @@ class Params(NamedTuple):
     @classmethod
     def build(cls, **kw: float | int | bool) -> Params:
         """Every field converted to its declared type (one compiled signature for all calls)."""
-        hints = get_type_hints(cls)
         out: dict[str, float | int | bool] = {}
-        for name in cls._fields:
-            out[name] = hints[name](kw.pop(name))
+        for name, kind in _param_kinds().items():
+            out[name] = kind(kw.pop(name))
         if kw:
             raise TypeError(f"unknown parameters {sorted(kw)}")
         return cls(**out)  # type: ignore[arg-type]
+
+
+@functools.cache
+def _param_kinds() -> dict[str, type]:
+    """Each ``Params`` field's declared type (the annotations are strings until resolved)."""
+    hints = get_type_hints(Params)
+    return {name: hints[name] for name in Params._fields}
 
 
 class Work(NamedTuple):
