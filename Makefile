@@ -4,6 +4,7 @@
 #   make demo     start the twin on loopback, stream a sample train through it, print a line per wheel
 #   make bench    run the benchmarks (benchmarks/run_all.py)
 #   make figures  draw the paper's figures into figures/
+#   make soak     10 000-passage burst and kill -9 mid-stream, then recover (several minutes)
 #   make validate the wheel-flat diagnosis on 90 synthetic + 15 measured-tread passages (~2 min)
 #   make lint     ruff and mypy only
 #
@@ -21,10 +22,10 @@ export NUMBA_CACHE_DIR ?= $(CURDIR)/$(VENV)/numba-cache
 export RERUN_ANALYTICS ?= 0
 export PIP_DISABLE_PIP_VERSION_CHECK := 1
 
-.PHONY: help venv test lint ruff mypy pytest demo bench figures validate clean
+.PHONY: help venv test lint ruff mypy pytest demo bench figures validate soak clean
 
 help:
-	@sed -n '2,11p' Makefile | sed 's/^# \{0,1\}//'
+	@sed -n '2,12p' Makefile | sed 's/^# \{0,1\}//'
 
 $(BIN)/python:
 	$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "railtwin needs Python >= 3.11, got " + sys.version.split()[0]'
@@ -62,6 +63,9 @@ demo: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python -m benchmarks.run_all
+
+soak: $(STAMP)
+	$(BIN)/python -m benchmarks.soak
 
 validate: $(STAMP)
 	$(BIN)/python -m validation.diagnosis_validation

@@ -1,11 +1,11 @@
-"""The input journal: every received payload on disk before it is queued.
+"""The journal: every received payload on disk before it is queued, every answer as sent.
 
 The MCAP log is written by a recorder process from a queue in memory; a kill -9 of
 every process of the service would lose what is still in that queue. So the Zenoh
 callback first appends each input, as it came, to ``<run>-inputs.journal`` with one
 ``write`` system call (the operating system keeps it once the call returns, whatever
-happens to the process), and only then queues it. ``railtwin recover`` merges a run's
-journal into its MCAP: inputs the recorder never wrote are added back.
+happens to the process), and only then queues it; each result, diagnosis and error is appended as it is published. ``railtwin
+recover`` merges a run's journal into its MCAP: what the recorder never wrote is added back.
 
 Record: magic ``RTJ1``, key length (u16), payload length (u32), received time (u64 ns),
 key, payload, CRC-32 of everything before it (little endian). A torn last record

@@ -38,7 +38,13 @@ from mcap.writer import CompressionType, Writer
 from pydantic import BaseModel
 
 from schemas.diagnosis import MeasuredPassage
-from schemas.messages import MESSAGE_MODELS, RejectedInput, WheelPassage, encoding_schema
+from schemas.messages import (
+    MESSAGE_MODELS,
+    MESSAGE_SCHEMA_VERSION,
+    RejectedInput,
+    WheelPassage,
+    encoding_schema,
+)
 from service.input_journal import read_journal
 from service.mcap_log import LoggedMessage
 
@@ -87,22 +93,29 @@ def read_any(paths: list[Path]) -> Iterator[LoggedMessage]:
     yield from msgs
 
 
-def _raw_input(m: LoggedMessage) -> bytes | None:
-    """The payload as received, for a logged input (valid or rejected); None otherwise."""
+def _raw_input(m: LoggedMessage) -> bytes:
+    """The payload as received for a logged input (valid or rejected), else the data."""
     if m.schema_name == encoding_schema(RejectedInput):
         try:
             return base64.b64decode(RejectedInput.model_validate_json(m.data).payload_base64)
         except ValueError:  # not what its schema says: compared as it is
             return m.data
-    if m.schema_name in (encoding_schema(WheelPassage), encoding_schema(MeasuredPassage)):
-        return m.data
-    return None
+    return m.data
+
+
+OUTPUT_MODELS = {"result": "PassageResult", "diagnosis": "Diagnosis", "error": "ServiceError"}
+"""The outputs the twin journals, by the last chunk of their topic."""
 
 
 def journal_messages(path: Path) -> Iterator[LoggedMessage]:
-    """A journal's inputs as the twin logs them: valid ones on their key, the others as
-    ``RejectedInput`` on ``<key>/rejected``."""
+    """A journal's records as the twin logs them: valid inputs on their key, the others as
+    ``RejectedInput`` on ``<key>/rejected``; outputs on their topic."""
     for e in read_journal(path):
+        out = OUTPUT_MODELS.get(e.key.rsplit("/", 1)[-1])
+        if out is not None:
+            yield LoggedMessage(e.key, f"railtwin.{out}/{MESSAGE_SCHEMA_VERSION}",
+                                e.received_ns, e.payload)
+            continue
         model: type[BaseModel] = MeasuredPassage if e.key.endswith("/measured") else WheelPassage
         try:
             model.model_validate_json(e.payload)
@@ -119,7 +132,8 @@ def journal_messages(path: Path) -> Iterator[LoggedMessage]:
 def recover(paths: list[Path], out: Path) -> RecoveryReport:
     """Write every salvageable message of ``paths`` (in log-time order) to a complete ``out``.
 
-    ``.journal`` files (``service.input_journal``) add the inputs the MCAP files lack.
+    ``.journal`` files (``service.input_journal``) add the inputs, results, diagnoses and
+    errors the MCAP files lack.
     """
     report = RecoveryReport()
     msgs: list[LoggedMessage] = []
@@ -136,8 +150,7 @@ def recover(paths: list[Path], out: Path) -> RecoveryReport:
             except (McapError, struct.error, EOFError, ValueError):
                 pass
         msgs.extend(salvage(p, report))
-    have = ({(m.log_time_ns, raw) for m in msgs if (raw := _raw_input(m)) is not None}
-            if journals else set())
+    have = {(m.log_time_ns, _raw_input(m)) for m in msgs} if journals else set()
     for j in sorted(journals):
         report.files += 1
         for m in journal_messages(j):

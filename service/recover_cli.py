@@ -46,7 +46,7 @@ def cmd_recover(args: argparse.Namespace) -> int:
         raise CommandError(f"cannot write {args.out}: {exc}", EXIT_FAILURE) from None
     for d in report.damaged:
         print(f"railtwin recover: {d}", file=sys.stderr)
-    extra = f" ({report.from_journal} inputs only in the journal)" if report.from_journal else ""
+    extra = f" ({report.from_journal} only in the journal)" if report.from_journal else ""
     print(f"railtwin recover: {report.messages} messages from {report.files} file(s){extra} "
           f"-> {args.out}")
     return EXIT_OK if report.messages else EXIT_FAILURE

@@ -87,6 +87,10 @@ def json_encoding(model: type[BaseModel]) -> zenoh.Encoding:
     return zenoh.Encoding.APPLICATION_JSON.with_schema(encoding_schema(model))
 
 
+JOURNALED_OUTPUTS: tuple[type[BaseModel], ...] = (PassageResult, Diagnosis, ServiceError)
+"""Outputs also appended to the journal when published (the series are in the result)."""
+
+
 @dataclass(frozen=True)
 class Inbound:
     """A payload as it arrived, before anything was made of it."""
@@ -632,8 +636,12 @@ class Twin:
             key, data, encoding=self._encodings[model],
             congestion_control=zenoh.CongestionControl.BLOCK, express=True,
         )
+        now = time.time_ns()
+        if self.journal is not None and model in JOURNALED_OUTPUTS:
+            # the record of what the twin said, on disk now: the recorder may lag behind
+            self.journal.append(topic, now, data)
         if self.recorder is not None:
-            self.recorder.message(topic, model, data, time.time_ns())
+            self.recorder.message(topic, model, data, now)
 
     def _series(self, r: PassageResult, quantity: Literal["force", "indentation"],
                 first: int, last: int, chunk: int, chunks: int) -> bytes:

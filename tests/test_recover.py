@@ -85,3 +85,23 @@ def test_the_journal_adds_back_the_inputs_the_recorder_never_wrote(tmp_path: Pat
     with out.open("rb") as f:
         got = [(c.topic, m.log_time) for _, c, m in make_reader(f).iter_messages()]
     assert got == [(key, 1_000 + i) for i in range(6)] + [(f"{key}/rejected", 1_006)]
+
+
+def test_the_journal_adds_back_answers_the_recorder_never_wrote(tmp_path: Path) -> None:
+    from schemas.messages import ServiceError
+    from service.input_journal import InputJournal
+
+    err = ServiceError(site_id="x", kind="invalid_passage", message="m", field=None,
+                       received_at=1.0).model_dump_json().encode()
+    journal = InputJournal(tmp_path / "run-inputs.journal")
+    journal.append("railtwin/x/error", 2_000, err)  # published, never logged by the recorder
+    journal.close()
+    log = McapLog(tmp_path, "run")
+    log.write("railtwin/x/passage/rejected", RejectedInput, b'{"i": 0}', 1_000)
+    log.flush()
+    out = tmp_path / "fixed.mcap"
+    assert cli_main(["recover", str(log.files[0]), str(tmp_path / "run-inputs.journal"),
+                     "--out", str(out)]) == 0
+    with out.open("rb") as f:
+        got = [(s.name, c.topic, m.data) for s, c, m in make_reader(f).iter_messages()]
+    assert got[-1] == ("railtwin.ServiceError/1.0", "railtwin/x/error", err)
