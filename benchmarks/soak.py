@@ -113,8 +113,9 @@ def burst(n: int, tmp: Path) -> dict[str, float]:
         deadline = time.monotonic() + 900.0
         answered = 0
         while time.monotonic() < deadline:
-            answered = (sum(o.result_at is not None for o in collector.outcomes.values())
-                        + len(collector.errors))
+            with collector._lock:  # the subscriber's thread adds to it
+                answered = (sum(o.result_at is not None for o in collector.outcomes.values())
+                            + len(collector.errors))
             if answered >= n:
                 break
             time.sleep(0.2)
@@ -122,7 +123,8 @@ def burst(n: int, tmp: Path) -> dict[str, float]:
         stop.set()
         watcher.join()
         sub.undeclare()
-        results = sum(o.result_at is not None for o in collector.outcomes.values())
+        with collector._lock:
+            results = sum(o.result_at is not None for o in collector.outcomes.values())
     return {"sent": n, "results": results, "rejected": len(collector.errors),
             "answered": answered, "seconds": elapsed, "passages_per_s": results / elapsed,
             "rss_start_mb": start_rss, "rss_peak_mb": peak,
