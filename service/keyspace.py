@@ -38,6 +38,11 @@ class SiteKeys:
         return f"{self.prefix}/measured"
 
     @property
+    def alive(self) -> str:
+        """The twin's liveliness token: present while it serves this site."""
+        return f"{self.prefix}/alive"
+
+    @property
     def error(self) -> str:
         return f"{self.prefix}/error"
 

@@ -256,6 +256,8 @@ class Twin:
             s.declare_queryable(self.keys.health, self._on_health_query),
             s.declare_subscriber(self.keys.passage, self._on_sample),
             s.declare_subscriber(self.keys.measured, self._on_measured),
+            # clients see the twin come and go: a liveliness subscriber gets PUT/DELETE
+            s.liveliness().declare_token(self.keys.alive),
         ]
 
     def stop(self) -> None:

@@ -133,6 +133,8 @@ def feed(endpoint: str, sends: list[bytes | WheelPassage]) -> tuple[Collector, l
                 break
             time.sleep(0.05)
         health = query_health(session)
+        alive = [r.ok is not None for r in session.liveliness().get(KEYS.alive, timeout=5.0)]
+        assert alive == [True], "the twin's liveliness token is missing"
         rail = None
         for reply in session.get(KEYS.rail, timeout=5.0):
             assert reply.ok is not None
