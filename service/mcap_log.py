@@ -53,8 +53,10 @@ class McapLog:
         max_bytes: int = DEFAULT_MAX_BYTES,
         max_seconds: float = DEFAULT_MAX_SECONDS,
         chunk_size: int = CHUNK_SIZE,
+        metadata: dict[str, str] | None = None,
     ) -> None:
         self.directory = directory
+        self.metadata = dict(metadata or {})
         self.stem = stem
         self.max_bytes = max_bytes
         self.max_seconds = max_seconds
@@ -78,6 +80,8 @@ class McapLog:
         self._file = path.open("wb")
         writer = Writer(self._file, chunk_size=self.chunk_size, compression=CompressionType.ZSTD)
         writer.start(profile="", library="railtwin")
+        if self.metadata:  # each file says which site file and version wrote it
+            writer.add_metadata(name="railtwin", data=self.metadata)
         self._writer = writer
         self._opened_at = time.monotonic()
         self._schemas = {}

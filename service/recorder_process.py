@@ -46,6 +46,8 @@ class RecordingPlan:
     mcap_max_bytes: int = 512 * 2**20
     mcap_max_seconds: float = 3600.0
     flush_interval: float = 0.5
+    metadata: tuple[tuple[str, str], ...] = ()
+    """Written as a ``railtwin`` metadata record at the start of every MCAP file."""
 
     @property
     def rrd_path(self) -> Path | None:
@@ -149,7 +151,8 @@ def _child_main(plan: RecordingPlan, inbox: Any, status: Any, parent_pid: int) -
 
     models = all_models()
     mcap = (
-        McapLog(plan.directory, plan.stem, max_bytes=plan.mcap_max_bytes,
+        McapLog(plan.directory, plan.stem, metadata=dict(plan.metadata),
+                max_bytes=plan.mcap_max_bytes,
                 max_seconds=plan.mcap_max_seconds)
         if plan.mcap else None
     )

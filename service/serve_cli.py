@@ -108,14 +108,18 @@ def one_line(exc: BaseException) -> str:
     return text[:300]
 
 
-def open_state(directory: Path, site: Any) -> RailStore:
-    """The site's state store; refuses one written for another site file or version."""
+def package_version() -> str:
     from importlib.metadata import PackageNotFoundError, version
 
     try:
-        pkg = version("railtwin")
+        return version("railtwin")
     except PackageNotFoundError:
-        pkg = "unknown"
+        return "unknown"
+
+
+def open_state(directory: Path, site: Any) -> RailStore:
+    """The site's state store; refuses one written for another site file or version."""
+    pkg = package_version()
     digest = hashlib.sha256(site.model_dump_json().encode()).hexdigest()[:16]
     return RailStore(directory, site.site_id, f"railtwin {pkg}, site file {digest}")
 
@@ -190,6 +194,8 @@ def _serve(args: argparse.Namespace, site: Any, cfg: zenoh.Config, listen: list[
             directory=args.recordings, stem=stem, site_id=site.site_id,
             mcap=not args.no_mcap, rerun=not args.no_rerun,
             mcap_max_bytes=int(args.mcap_max_mb * 2**20), mcap_max_seconds=args.mcap_max_seconds,
+            metadata=(("railtwin_version", package_version()), ("site", site.model_dump_json()),
+                      ("site_file", str(args.site)), ("started_at", stamp)),
         ))
 
     # every input on disk before it is queued: recover merges it into a cut MCAP

@@ -297,3 +297,15 @@ def test_replay_reproduces_the_outputs_exactly(first_run: Run, replayed_run: Run
         assert isinstance(again, PassageResult) and o.result is not None
         assert again.force == o.result.force
         assert again.summary == o.result.summary
+
+
+def test_each_mcap_file_says_which_site_file_and_version_wrote_it(first_run: Run) -> None:
+    from mcap.reader import make_reader
+
+    for path in first_run.service.mcap_files:
+        with path.open("rb") as f:
+            records = [m for m in make_reader(f).iter_metadata() if m.name == "railtwin"]
+        assert len(records) == 1
+        meta = records[0].metadata
+        assert json.loads(meta["site"])["site_id"] == SITE_ID
+        assert meta["railtwin_version"] and meta["site_file"].endswith("site.toml")
