@@ -30,6 +30,7 @@ class _Message:
     model: type[BaseModel]
     data: bytes
     log_time_ns: int
+    publish_time_ns: int | None = None
 
 
 @dataclass(frozen=True)
@@ -64,7 +65,8 @@ _STOP = object()
 class RecorderFront(Protocol):
     """What the twin needs of a recorder (this thread's, or ``recorder_process``'s child)."""
 
-    def message(self, topic: str, model: type[BaseModel], data: bytes, log_time_ns: int) -> None: ...
+    def message(self, topic: str, model: type[BaseModel], data: bytes, log_time_ns: int,
+                publish_time_ns: int | None = None) -> None: ...
     def passage(self, result: PassageResult, data: bytes | None = None) -> None: ...
     def dent(self, passage_id: str, state: RailState) -> None: ...
     def rail(self, state: RailState) -> None: ...
@@ -98,9 +100,10 @@ class Recorder:
 
     # --- front -------------------------------------------------------------------------
 
-    def message(self, topic: str, model: type[BaseModel], data: bytes, log_time_ns: int) -> None:
+    def message(self, topic: str, model: type[BaseModel], data: bytes, log_time_ns: int,
+                publish_time_ns: int | None = None) -> None:
         if self.mcap is not None:
-            self._queue.put(_Message(topic, model, data, log_time_ns))
+            self._queue.put(_Message(topic, model, data, log_time_ns, publish_time_ns))
 
     def passage(self, result: PassageResult, data: bytes | None = None) -> None:
         """``data``, when given, is the whole result (``result`` may lack its arrays)."""
@@ -168,7 +171,8 @@ class Recorder:
     def _write(self, item: Any) -> None:
         if isinstance(item, _Message) and self.mcap is not None:
             mcap = self.mcap
-            self._guard(lambda: mcap.write(item.topic, item.model, item.data, item.log_time_ns))
+            self._guard(lambda: mcap.write(item.topic, item.model, item.data, item.log_time_ns,
+                                           item.publish_time_ns))
         elif self.rerun is not None:
             rerun = self.rerun
             if isinstance(item, _Passage):

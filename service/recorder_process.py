@@ -74,9 +74,10 @@ class ProcessRecorder:
 
     # --- front -------------------------------------------------------------------------
 
-    def message(self, topic: str, model: type[BaseModel], data: bytes, log_time_ns: int) -> None:
+    def message(self, topic: str, model: type[BaseModel], data: bytes, log_time_ns: int,
+                publish_time_ns: int | None = None) -> None:
         if self.plan.mcap and not self._closed:
-            self._queue.put(("m", topic, model.__name__, data, log_time_ns))
+            self._queue.put(("m", topic, model.__name__, data, log_time_ns, publish_time_ns))
 
     def passage(self, result: PassageResult, data: bytes | None = None) -> None:
         """``data``: the result's JSON if the caller has it already (saves serialising twice)."""
@@ -198,8 +199,8 @@ def _write(item: tuple[Any, ...], models: dict[str, type[BaseModel]], mcap: Any,
         return
     kind = item[0]
     if kind == "m" and mcap is not None:
-        _, topic, model_name, data, log_time_ns = item
-        mcap.write(topic, models[model_name], data, log_time_ns)
+        _, topic, model_name, data, log_time_ns, publish_time_ns = item
+        mcap.write(topic, models[model_name], data, log_time_ns, publish_time_ns)
     elif kind == "p" and rerun is not None:
         rerun.log_passage(PassageResult.model_validate_json(item[1]))
     elif kind == "d" and rerun is not None:

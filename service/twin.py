@@ -616,7 +616,9 @@ class Twin:
         key = self.keys.measured if measured else self.keys.passage
         if message is not None:
             model = MeasuredPassage if measured else WheelPassage
-            self.recorder.message(key, model, item.payload, item.received_ns)
+            at = (round(message.timestamp * 1e9) if isinstance(message, WheelPassage)
+                  else None)  # the passage's own time, as publish_time in the log
+            self.recorder.message(key, model, item.payload, item.received_ns, at)
             return
         rejected = RejectedInput(
             key=item.key, payload_base64=base64.b64encode(item.payload).decode("ascii"),
@@ -633,7 +635,9 @@ class Twin:
             self.last_error = error
         self._put(self.keys.error, self.keys.error, ServiceError, error.model_dump_json().encode())
 
-    def _put(self, key: str, topic: str, model: type[BaseModel], data: bytes) -> None:
+    def _put(self, key: str, topic: str, model: type[BaseModel], data: bytes,
+             publish_time_ns: int | None = None) -> None:
+        """Publish; log (MCAP with ``publish_time_ns``: the passage's own time, if given)."""
         self.session.put(
             key, data, encoding=self._encodings[model],
             congestion_control=zenoh.CongestionControl.BLOCK, express=True,
@@ -643,7 +647,7 @@ class Twin:
             # the record of what the twin said, on disk now: the recorder may lag behind
             self.journal.append(topic, now, data)
         if self.recorder is not None:
-            self.recorder.message(topic, model, data, now)
+            self.recorder.message(topic, model, data, now, publish_time_ns)
 
     def _series(self, r: PassageResult, quantity: Literal["force", "indentation"],
                 first: int, last: int, chunk: int, chunks: int) -> bytes:
@@ -657,20 +661,22 @@ class Twin:
         then ``r`` may come without its arrays and ``result_data`` is the whole result."""
         k = self.keys
         pid = r.passage_id
+        at = round(r.timestamp * 1e9)  # the passage's own time, as publish_time in the log
         if result_data is None:
             result_data = r.model_dump_json().encode()
         if series is not None:
-            self._put(k.force(pid), f"{k.prefix}/force", PassageSeries, series[0])
-            self._put(k.indentation(pid), f"{k.prefix}/indentation", PassageSeries, series[1])
-            self._put(k.result(pid), f"{k.prefix}/result", PassageResult, result_data)
+            self._put(k.force(pid), f"{k.prefix}/force", PassageSeries, series[0], at)
+            self._put(k.indentation(pid), f"{k.prefix}/indentation", PassageSeries, series[1],
+                      at)
+            self._put(k.result(pid), f"{k.prefix}/result", PassageResult, result_data, at)
             return result_data
         if self.pace == "fast":
             n = len(r.x)
             self._put(k.force(pid), f"{k.prefix}/force", PassageSeries,
-                      self._series(r, "force", 0, n, 0, 1))
+                      self._series(r, "force", 0, n, 0, 1), at)
             self._put(k.indentation(pid), f"{k.prefix}/indentation", PassageSeries,
-                      self._series(r, "indentation", 0, n, 0, 1))
-            self._put(k.result(pid), f"{k.prefix}/result", PassageResult, result_data)
+                      self._series(r, "indentation", 0, n, 0, 1), at)
+            self._put(k.result(pid), f"{k.prefix}/result", PassageResult, result_data, at)
             return result_data
         n = len(r.x)
         per_chunk = max(1, round(self.chunk_period * r.sample_rate))

@@ -309,3 +309,23 @@ def test_each_mcap_file_says_which_site_file_and_version_wrote_it(first_run: Run
         meta = records[0].metadata
         assert json.loads(meta["site"])["site_id"] == SITE_ID
         assert meta["railtwin_version"] and meta["site_file"].endswith("site.toml")
+
+
+def test_inputs_and_results_are_logged_with_the_passage_time_as_publish_time(
+    first_run: Run,
+) -> None:
+    from mcap.reader import make_reader
+
+    p = KEYS.prefix
+    stamps = {}
+    for path in first_run.service.mcap_files:
+        with path.open("rb") as f:
+            for _, channel, m in make_reader(f).iter_messages():
+                if channel.topic in (f"{p}/passage", f"{p}/result"):
+                    pid = json.loads(m.data)["passage_id"]
+                    stamps.setdefault(pid, set()).add((channel.topic, m.publish_time))
+    for pid, o in first_run.collector.outcomes.items():
+        assert o.result is not None
+        at = round(o.result.timestamp * 1e9)
+        assert (f"{p}/result", at) in stamps[pid]
+        assert (f"{p}/passage", at) in stamps[pid]
