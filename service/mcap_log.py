@@ -36,6 +36,7 @@ from mcap.writer import CompressionType, Writer
 from pydantic import BaseModel
 
 from schemas.messages import MESSAGE_MODELS, encoding_schema
+from service.retention import enforce_retention
 
 DEFAULT_MAX_BYTES = 512 * 1024 * 1024
 DEFAULT_MAX_SECONDS = 3600.0
@@ -54,9 +55,11 @@ class McapLog:
         max_seconds: float = DEFAULT_MAX_SECONDS,
         chunk_size: int = CHUNK_SIZE,
         metadata: dict[str, str] | None = None,
+        keep_bytes: int | None = None,
     ) -> None:
         self.directory = directory
         self.metadata = dict(metadata or {})
+        self.keep_bytes = keep_bytes
         self.stem = stem
         self.max_bytes = max_bytes
         self.max_seconds = max_seconds
@@ -76,6 +79,8 @@ class McapLog:
         return self.files[-1] if self._writer is not None else None
 
     def _open(self) -> Writer:
+        if self.keep_bytes is not None:  # on every rotation: the oldest runs' files go
+            enforce_retention(self.directory, self.keep_bytes, protect=self.stem)
         path = self.directory / f"{self.stem}-{len(self.files):03d}.mcap"
         self._file = path.open("wb")
         writer = Writer(self._file, chunk_size=self.chunk_size, compression=CompressionType.ZSTD)

@@ -46,6 +46,8 @@ class RecordingPlan:
     mcap_max_bytes: int = 512 * 2**20
     mcap_max_seconds: float = 3600.0
     flush_interval: float = 0.5
+    keep_bytes: int | None = None
+    """Retention limit of the recordings directory (``service.retention``); None: keep all."""
     metadata: tuple[tuple[str, str], ...] = ()
     """Written as a ``railtwin`` metadata record at the start of every MCAP file."""
 
@@ -152,7 +154,7 @@ def _child_main(plan: RecordingPlan, inbox: Any, status: Any, parent_pid: int) -
 
     models = all_models()
     mcap = (
-        McapLog(plan.directory, plan.stem, metadata=dict(plan.metadata),
+        McapLog(plan.directory, plan.stem, metadata=dict(plan.metadata), keep_bytes=plan.keep_bytes,
                 max_bytes=plan.mcap_max_bytes,
                 max_seconds=plan.mcap_max_seconds)
         if plan.mcap else None

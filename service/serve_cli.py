@@ -58,6 +58,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-rerun", action="store_true", help="do not write the Rerun recording")
     p.add_argument("--mcap-max-mb", type=float, default=DEFAULT_MAX_BYTES / 2**20,
                    help="start a new MCAP file past this size (MB)")
+    p.add_argument("--keep-gb", type=float, default=50.0, metavar="GB",
+                   help="retention: when a log rotates, the oldest railtwin-* recordings in the "
+                        "directory are deleted until at most this much remains (default 50; "
+                        "0: keep everything)")
     p.add_argument("--mcap-max-seconds", type=float, default=DEFAULT_MAX_SECONDS,
                    help="start a new MCAP file after this many seconds")
     p.add_argument("--queue", type=int, default=10_000,
@@ -136,6 +140,9 @@ def run(args: argparse.Namespace) -> int:
     if problem is not None:
         print(f"railtwin serve: {args.site}: invalid site: {problem}", file=sys.stderr)
         return 2
+    if not args.keep_gb >= 0:
+        print("railtwin serve: --keep-gb must be >= 0", file=sys.stderr)
+        return 2
     if not args.passage_budget > 0:
         print("railtwin serve: --passage-budget must be > 0", file=sys.stderr)
         return 2
@@ -194,6 +201,7 @@ def _serve(args: argparse.Namespace, site: Any, cfg: zenoh.Config, listen: list[
             directory=args.recordings, stem=stem, site_id=site.site_id,
             mcap=not args.no_mcap, rerun=not args.no_rerun,
             mcap_max_bytes=int(args.mcap_max_mb * 2**20), mcap_max_seconds=args.mcap_max_seconds,
+            keep_bytes=int(args.keep_gb * 2**30) if args.keep_gb > 0 else None,
             metadata=(("railtwin_version", package_version()), ("site", site.model_dump_json()),
                       ("site_file", str(args.site)), ("started_at", stamp)),
         ))
