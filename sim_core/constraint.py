@@ -785,6 +785,23 @@ def _crossing(
 
 
 @numba.njit(cache=True)
+def _block_max(vy: NDArray[np.float64], B: int) -> NDArray[np.float64]:
+    """Highest vertex of each block of ``B`` vertices, the neighbours' shared ends included
+    (the bound that lets the polyline solve skip whole blocks)."""
+    n = vy.size
+    nb = (n + B - 1) // B + 1
+    bmax = np.full(nb, -np.inf)
+    for k in range(n):
+        b = k // B
+        bmax[b] = max(bmax[b], vy[k])
+        if k % B == 0 and b > 0:
+            bmax[b - 1] = max(bmax[b - 1], vy[k])
+        if k % B == B - 1 and b + 1 < nb:
+            bmax[b + 1] = max(bmax[b + 1], vy[k])
+    return bmax
+
+
+@numba.njit(cache=True)
 def _tabulate_poly(
     x0: float,
     x1: float,
@@ -795,16 +812,7 @@ def _tabulate_poly(
     B: int,
 ) -> NDArray[np.float64]:
     """Nodes of a round wheel on a polyline: grid nodes plus every change of active piece."""
-    n = vx.size
-    nb = (n + B - 1) // B + 1
-    bmax = np.full(nb, -np.inf)
-    for k in range(n):
-        b = k // B
-        bmax[b] = max(bmax[b], vy[k])
-        if k % B == 0 and b > 0:
-            bmax[b - 1] = max(bmax[b - 1], vy[k])
-        if k % B == B - 1 and b + 1 < nb:
-            bmax[b + 1] = max(bmax[b + 1], vy[k])
+    bmax = _block_max(vy, B)
     gmax = vy.max()
     nodes = np.empty((4 * nint + 64, _NCOL))
     nn = 0
@@ -1366,16 +1374,7 @@ def _poly_points(
 ) -> NDArray[np.float64]:
     """Exact nodes of the round wheel on the polyline at the positions ``xs``."""
     B = 16
-    n = vx.size
-    nb = (n + B - 1) // B + 1
-    bmax = np.full(nb, -np.inf)
-    for k in range(n):
-        b = k // B
-        bmax[b] = max(bmax[b], vy[k])
-        if k % B == 0 and b > 0:
-            bmax[b - 1] = max(bmax[b - 1], vy[k])
-        if k % B == B - 1 and b + 1 < nb:
-            bmax[b + 1] = max(bmax[b + 1], vy[k])
+    bmax = _block_max(vy, B)
     gmax = vy.max()
     out = np.zeros((xs.size, _NCOL))
     for i in range(xs.size):
