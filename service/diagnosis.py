@@ -28,10 +28,10 @@ from sim_core.diagnosis.forward import (
     WheelOnSite,
     flat_times,
     simulate_passage_run_in,
+    with_damping_ratio,
 )
 from sim_core.diagnosis.sensor import SensorModel
 from sim_core.diagnosis.verdict import Limits, verdict
-from sim_core.passage import Foundation
 
 MIN_RECORD_FRACTION = 0.5
 """A record must cover at least this fraction of the wheel's time on the site."""
@@ -128,7 +128,7 @@ class Diagnoser:
         t = measured.t_start + np.arange(measured.samples) / measured.sample_rate
         f = np.asarray(measured.force, dtype=np.float64)
         est = estimate_flat(wheel, speed, t, f, self.sensor)
-        fit_wheel = self._with_damping(wheel, est.damping_ratio)
+        fit_wheel = with_damping_ratio(wheel, est.damping_ratio)
         fitted = self._measure(fit_wheel, est.speed, est.flat, float(t[0]), float(t[-1]), t)
         cfg = self.site.diagnosis
         at_line: float | None = None
@@ -157,15 +157,6 @@ class Diagnoser:
             peak_force_at_line_speed=at_line, wall_time=time.perf_counter() - start,
         )
         return diag, FitCurves(t, t * est.speed, f, fitted, impacts, est)
-
-    @staticmethod
-    def _with_damping(wheel: WheelOnSite, zeta: float) -> WheelOnSite:
-        fnd = wheel.foundation
-        if not fnd.is_compliant:
-            return wheel
-        c = 2.0 * zeta * math.sqrt(fnd.stiffness * fnd.mass)
-        return WheelOnSite(wheel.mass, wheel.load, wheel.radius, wheel.contact,
-                           Foundation.compliant(fnd.mass, fnd.stiffness, c), wheel.rtol)
 
     def _measure(self, wheel: WheelOnSite, speed: float, flat: Flat | None, t0: float, t1: float,
                  t_out: NDArray[np.float64], rate: float | None = None) -> NDArray[np.float64]:

@@ -13,7 +13,6 @@ site's measuring chain, and writes the CSV ``railtwin diagnose`` reads (``t_s,fo
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from pathlib import Path
 
@@ -24,7 +23,7 @@ from schemas.site import SiteConfig
 from service.diagnosis import Diagnoser
 from service.site import load_site
 from service.site_physics import wheel_outline
-from sim_core.diagnosis.forward import Flat, MeasuredTread, Tread
+from sim_core.diagnosis.forward import Flat, MeasuredTread, Tread, damping_for_ratio
 from sim_core.diagnosis.synthetic import Perturbations, SyntheticMeasurement, synthetic_measurement
 
 
@@ -37,7 +36,7 @@ def measure(site: SiteConfig, passage: WheelPassage, tread: Tread | None, *, see
     damping = None
     f = wheel.foundation
     if damping_ratio is not None and f.is_compliant:
-        damping = 2.0 * damping_ratio * math.sqrt(f.stiffness * f.mass)
+        damping = damping_for_ratio(f, damping_ratio)
     rate = site.diagnosis.sample_rate or 10_000.0
     return synthetic_measurement(
         wheel, passage.speed, tread, d.physics.base_rail, site.length, rate, d.sensor,

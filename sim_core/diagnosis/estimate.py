@@ -49,12 +49,13 @@ from sim_core.diagnosis.forward import (
     FlatKind,
     RailTables,
     WheelOnSite,
+    damping_ratio_of,
     simulate_window,
     wheel_table,
+    with_damping_ratio,
 )
 from sim_core.diagnosis.sensor import SensorModel
 from sim_core.diagnosis.turns import find_anchors
-from sim_core.passage import Foundation
 from sim_core.rail import RailProfile
 from sim_core.wheel import TWO_PI
 
@@ -167,14 +168,6 @@ class _Problem:
     turns: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     period_band: tuple[float, float] = (0.0, 0.0)
 
-    def wheel_with(self, zeta: float) -> WheelOnSite:
-        """The wheel on the site's foundation with damping ratio ``zeta`` (rigid: as is)."""
-        f = self.wheel.foundation
-        if not f.is_compliant:
-            return self.wheel
-        c = 2.0 * zeta * math.sqrt(f.stiffness * f.mass)
-        return replace(self.wheel, foundation=Foundation.compliant(f.mass, f.stiffness, c))
-
     def template(self, flat: Flat, zeta: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(τ, filtered force): the flat's centre under the wheel at τ = 0 (kept)."""
         tkey = (flat.kind, round(flat.length, 9), round(zeta, 9))
@@ -196,7 +189,7 @@ class _Problem:
         if table is None:  # the same flat is tried at several damping ratios
             table = wheel_table(self.wheel.radius, flat.with_phase(0.0), self.rails, v * t0, v * t1)
             self.tables[key] = table
-        wheel = self.wheel_with(zeta)
+        wheel = with_damping_ratio(self.wheel, zeta)
         if wheel.rtol < TEMPLATE_RTOL:  # the fit's error is model error, not 1e-8
             wheel = replace(wheel, rtol=TEMPLATE_RTOL)
         out = simulate_window(wheel, v, table, t0, t1, self.fine_rate)
@@ -486,7 +479,7 @@ def estimate_flat(
     zetas: tuple[float, ...] = (0.0,)
     zeta_site = 0.0
     if f_site.is_compliant:
-        zeta_site = f_site.damping / (2.0 * math.sqrt(f_site.stiffness * f_site.mass))
+        zeta_site = damping_ratio_of(f_site)
         zetas = tuple(sorted({round(zeta_site, 6), *options.damping_ratios}))
     # 1. coarse: every kind, length and damping ratio of the grids
     for kind in options.kinds:

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import math
 from collections import OrderedDict
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Literal
 
 import numpy as np
@@ -55,11 +55,14 @@ __all__ = [
     "RailTables",
     "Tread",
     "WheelOnSite",
+    "damping_for_ratio",
+    "damping_ratio_of",
     "flat_times",
     "simulate_passage_run_in",
     "simulate_window",
     "typical_rounded_depth",
     "wheel_table",
+    "with_damping_ratio",
 ]
 
 FlatKind = Literal["flat", "rounded_flat"]
@@ -152,6 +155,25 @@ class WheelOnSite:
     contact: ContactModel
     foundation: Foundation = field(default_factory=Foundation.rigid)
     rtol: float = 1e-8
+
+
+def damping_for_ratio(foundation: Foundation, zeta: float) -> float:
+    """The damper c (N·s/m) that gives a compliant foundation the damping ratio ``zeta``."""
+    return 2.0 * zeta * math.sqrt(foundation.stiffness * foundation.mass)
+
+
+def damping_ratio_of(foundation: Foundation) -> float:
+    """The damping ratio c / (2·sqrt(k·M)) of a compliant foundation."""
+    return foundation.damping / (2.0 * math.sqrt(foundation.stiffness * foundation.mass))
+
+
+def with_damping_ratio(wheel: WheelOnSite, zeta: float) -> WheelOnSite:
+    """The wheel on its foundation damped to the ratio ``zeta`` (a rigid one as it is)."""
+    f = wheel.foundation
+    if not f.is_compliant:
+        return wheel
+    return replace(wheel, foundation=Foundation.compliant(f.mass, f.stiffness,
+                                                          damping_for_ratio(f, zeta)))
 
 
 def flat_times(radius: float, speed: float, phase: float, t0: float, t1: float) -> NDArray[np.float64]:
