@@ -21,6 +21,7 @@ import numpy as np
 
 from schemas import result as res
 from schemas import scenario as sc
+from service import physics_inputs
 
 Progress = Callable[[int, int], None]
 """progress(done, total): called with the number of passes completed so far."""
@@ -28,65 +29,10 @@ Progress = Callable[[int, int], None]
 SUMMARY_FIELDS = tuple(res.Summary.model_fields)
 
 
-def build_material(scenario: sc.Scenario) -> Any:
-    from sim_core.materials import Material
+def build_spec(scenario: sc.Scenario, contact: Any) -> Any:
+    """``PassageSpec`` of the scenario with its ``ContactModel`` (``physics_inputs.contact_model``)."""
+    from sim_core.passage import InitialState, PassageSpec
 
-    m = scenario.material
-    return Material(m.youngs_modulus, m.poisson_ratio, m.yield_stress)
-
-
-def build_wheel(wheel: sc.Wheel) -> Any:
-    """The pydantic wheel outline as a ``sim_core.wheel.WheelOutline``."""
-    from sim_core.wheel import WheelOutline
-
-    o = wheel.outline
-    r = wheel.radius
-    if isinstance(o, sc.RoundOutline):
-        return WheelOutline.round(r)
-    if isinstance(o, sc.FlatOutline):
-        return WheelOutline.ideal_flat(r, o.length)
-    if isinstance(o, sc.RoundedFlatOutline):
-        return WheelOutline.rounded_flat(r, o.length, o.depth)
-    if isinstance(o, sc.SampledOutline):
-        return WheelOutline.sampled(
-            np.asarray(o.theta, float), np.asarray(o.radius, float), nominal_radius=r
-        )
-    raise TypeError(f"unknown wheel outline {o!r}")  # pragma: no cover - schema forbids it
-
-
-def build_rail(rail: sc.FlatRail | sc.CosineRail | sc.StepRail | sc.SampledRail) -> Any:
-    """The pydantic rail as a ``sim_core.rail.RailProfile``."""
-    from sim_core.rail import RailProfile
-
-    if isinstance(rail, sc.FlatRail):
-        return RailProfile.flat()
-    if isinstance(rail, sc.CosineRail):
-        return RailProfile.cosine(rail.amplitude, rail.wavelength)
-    if isinstance(rail, sc.StepRail):
-        return RailProfile.step(rail.height, rail.position)
-    if isinstance(rail, sc.SampledRail):
-        return RailProfile.sampled(np.asarray(rail.x, float), np.asarray(rail.y, float))
-    raise TypeError(f"unknown rail profile {rail!r}")  # pragma: no cover - schema forbids it
-
-
-def build_spec(scenario: sc.Scenario, derived: Any) -> Any:
-    """``PassageSpec`` of the scenario, with the contact model from the derived constants."""
-    from sim_core.contact_laws import ContactLaw, ContactModel
-    from sim_core.passage import Foundation, InitialState, PassageSpec
-
-    law = ContactLaw.from_name(scenario.contact)
-    contact = ContactModel(
-        law,
-        derived.contact_coefficient,
-        derived.yield_force or 0.0,
-        derived.yield_indentation or 0.0,
-    )
-    f = scenario.foundation
-    foundation = (
-        Foundation.compliant(f.mass, f.stiffness, f.damping)
-        if isinstance(f, sc.CompliantFoundation)
-        else Foundation.rigid()
-    )
     i = scenario.initial
     initial = None if i is None else InitialState(i.y_c, i.v_c, i.y_m, i.v_m)
     w = scenario.wheel
@@ -97,18 +43,10 @@ def build_spec(scenario: sc.Scenario, derived: Any) -> Any:
         duration=scenario.duration,
         sample_rate=scenario.sample_rate,
         contact=contact,
-        foundation=foundation,
+        foundation=physics_inputs.foundation(scenario.foundation),
         initial=initial,
         rtol=scenario.rtol,
     )
-
-
-def derive_quantities(scenario: sc.Scenario) -> Any:
-    """``sim_core.materials.derive`` of the scenario (C, δ0, f0, F_Y, δ_Y)."""
-    from sim_core.materials import derive
-
-    w = scenario.wheel
-    return derive(build_material(scenario), radius=w.radius, load=w.load, mass=w.mass)
 
 
 def run_scenario(scenario: sc.Scenario, progress: Progress | None = None) -> res.Result:
@@ -121,10 +59,13 @@ def run_scenario(scenario: sc.Scenario, progress: Progress | None = None) -> res
     from sim_core.multipass import simulate_passes
 
     started = time.perf_counter()
-    derived = derive_quantities(scenario)
-    spec = build_spec(scenario, derived)
-    wheel = build_wheel(scenario.wheel)
-    rail = build_rail(scenario.rail)
+    w = scenario.wheel
+    contact, derived = physics_inputs.contact_model(
+        scenario.contact, scenario.material, radius=w.radius, load=w.load, mass=w.mass
+    )
+    spec = build_spec(scenario, contact)
+    wheel = physics_inputs.wheel_outline(w.outline, w.radius)
+    rail = physics_inputs.rail_profile(scenario.rail)
 
     kwargs: dict[str, Any] = {
         "passes": scenario.passes,

@@ -23,23 +23,14 @@ import numpy as np
 
 from schemas.messages import PassageResult, RailState, WheelPassage
 from schemas.result import Summary, Transition
-from schemas.scenario import (
-    CosineRail,
-    FlatOutline,
-    FlatRail,
-    RoundedFlatOutline,
-    RoundOutline,
-    SampledOutline,
-    SampledRail,
-    StepRail,
-)
+from schemas.scenario import FlatOutline
 from schemas.site import SiteConfig
+from service import physics_inputs
 from sim_core.constraint import tabulate_constraint, warm_up_constraint
 from sim_core.constraint_table import ConstraintTable
 from sim_core.contact_laws import ContactLaw, ContactModel
 from sim_core.dents import dent_profile, dented_rail
-from sim_core.materials import Material, derive
-from sim_core.passage import Foundation, PassageOutput, PassageSpec, simulate_passage
+from sim_core.passage import PassageOutput, PassageSpec, simulate_passage
 from sim_core.rail import RailProfile
 from sim_core.summary import summarize
 from sim_core.wheel import WheelOutline
@@ -53,29 +44,12 @@ RAIL_STATE_SPACING = 1e-3
 
 def rail_profile(site: SiteConfig) -> RailProfile:
     """The site's rail as a ``sim_core`` profile (a file rail is resolved by ``service.site``)."""
-    r = site.rail
-    if isinstance(r, FlatRail):
-        return RailProfile.flat()
-    if isinstance(r, CosineRail):
-        return RailProfile.cosine(r.amplitude, r.wavelength)
-    if isinstance(r, StepRail):
-        return RailProfile.step(r.height, r.position)
-    if isinstance(r, SampledRail):
-        return RailProfile.sampled(np.asarray(r.x), np.asarray(r.y))
-    raise ValueError(f"rail kind {r.kind!r} must be resolved before simulation (service.site)")
+    return physics_inputs.rail_profile(site.rail)
 
 
 def wheel_outline(p: WheelPassage) -> WheelOutline:
-    o = p.outline
-    if isinstance(o, RoundOutline):
-        return WheelOutline.round(p.radius)
-    if isinstance(o, FlatOutline):
-        return WheelOutline.ideal_flat(p.radius, o.length)
-    if isinstance(o, RoundedFlatOutline):
-        return WheelOutline.rounded_flat(p.radius, o.length, o.depth)
-    if isinstance(o, SampledOutline):
-        return WheelOutline.sampled(np.asarray(o.theta), np.asarray(o.radius), p.radius)
-    raise ValueError(f"unknown outline {o!r}")
+    """The passage's wheel outline (``physics_inputs.wheel_outline``)."""
+    return physics_inputs.wheel_outline(p.outline, p.radius)
 
 
 @dataclass(frozen=True)
@@ -91,15 +65,9 @@ class SitePhysics:
 
     def __init__(self, site: SiteConfig) -> None:
         self.site = site
-        self.material = Material(
-            site.material.youngs_modulus, site.material.poisson_ratio, site.material.yield_stress
-        )
+        self.material = physics_inputs.material(site.material)
         self.law = ContactLaw.from_name(site.contact)
-        f = site.foundation
-        self.foundation = (
-            Foundation.compliant(f.mass, f.stiffness, f.damping)
-            if f.kind == "compliant" else Foundation.rigid()
-        )
+        self.foundation = physics_inputs.foundation(site.foundation)
         self.base_rail = rail_profile(site)
         self._rail = _Rail(self.base_rail, 0)
         self._tables: OrderedDict[tuple[float, int], ConstraintTable] = OrderedDict()
@@ -126,9 +94,10 @@ class SitePhysics:
         return table
 
     def contact_model(self, passage: WheelPassage) -> ContactModel:
-        d = derive(self.material, passage.radius, passage.load, passage.mass)
-        return ContactModel(self.law, d.contact_coefficient, d.yield_force or 0.0,
-                            d.yield_indentation or 0.0, self.material.johnson_coefficient)
+        model, _ = physics_inputs.contact_model(self.site.contact, self.material,
+                                                radius=passage.radius, load=passage.load,
+                                                mass=passage.mass)
+        return model
 
     def warm_up(self) -> float:
         """Compile and exercise the physics once (no effect on the rail); returns seconds."""

@@ -197,8 +197,10 @@ def fake_multipass(monkeypatch: pytest.MonkeyPatch) -> list[dict[str, Any]]:
         step=factory("step"),
         sampled=factory("sampled"),
     )
-    for name, module in (("multipass", multipass), ("wheel", wheel), ("rail", rail)):
-        monkeypatch.setitem(sys.modules, f"sim_core.{name}", module)
+    monkeypatch.setitem(sys.modules, "sim_core.multipass", multipass)
+    # the runner builds wheel and rail through service.physics_inputs (imported already)
+    monkeypatch.setattr("service.physics_inputs.WheelOutline", wheel.WheelOutline)
+    monkeypatch.setattr("service.physics_inputs.RailProfile", rail.RailProfile)
     return calls
 
 
