@@ -34,7 +34,7 @@ ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results.json"
 SERVICE_SCRIPT = ROOT / "benchmarks" / "service_bench.py"
 SERVICE_WHEELS = 200
-SERVICE_TIMEOUT = 150.0
+SERVICE_TIMEOUT = 240.0
 
 
 def _load() -> list[float]:

@@ -12,7 +12,9 @@ Starts ``railtwin serve`` in its own process (MCAP and Rerun on, unless
 2. **flood**: the same passages sent at once: sustained passages per second
    (first send to last result) and the latency under that backlog;
 3. **flood, no recording**: the same against a second service with
-   ``--no-mcap --no-rerun``, to show what recording costs.
+   ``--no-mcap --no-rerun``, to show what recording costs, once per
+   ``--workers`` count (default 1 and 2 physics worker processes: an elastic
+   site's passages are independent and may be simulated in parallel).
 
 Prints a table; asserts nothing (timings depend on the machine).
 """
@@ -81,7 +83,7 @@ class Phase:
         rate = self.served / self.span if self.span > 0 else float("nan")
         sim = statistics.median(self.sim_times) * 1e3 if self.sim_times else float("nan")
         on_time = "" if self.on_time is None else f"{self.on_time}/{self.served}"
-        return (f"| {self.name:<28} | {self.served:>3}/{self.sent:<3} | {p50:8.2f} | {p99:8.2f} | "
+        return (f"| {self.name:<33} | {self.served:>3}/{self.sent:<3} | {p50:8.2f} | {p99:8.2f} | "
                 f"{mx:8.2f} | {rate:8.1f} | {sim:6.2f} | {on_time:>9} |")
 
 
@@ -118,19 +120,25 @@ def main(argv: list[str] | None = None) -> int:
                    help="stub: the service's own overhead, without physics")
     p.add_argument("--skip-train", action="store_true", help="only the flood phases")
     p.add_argument("--timeout", type=float, default=120.0)
+    p.add_argument("--workers", type=int, nargs="+", default=[1, 2], metavar="N",
+                   help="physics worker counts of the no-recording flood (default: 1 2)")
     args = p.parse_args(argv)
+    if any(n < 1 for n in args.workers):
+        p.error("--workers: each count must be >= 1")
     site = load_site(args.site)
     keys = SiteKeys(site.site_id)
     rows: list[Phase] = []
     with tempfile.TemporaryDirectory(prefix="railtwin-bench-") as tmp:
-        for recording in (True, False):
+        runs = [(True, 1)] + [(False, n) for n in args.workers]
+        for recording, workers in runs:
             endpoint = free_tcp_endpoint()
-            extra = ["--physics", args.physics]
+            extra = ["--physics", args.physics, "--workers", str(workers)]
             if not recording:
                 extra += ["--no-mcap", "--no-rerun"]
             with ServiceProcess(args.site, listen=endpoint, recordings=Path(tmp) / "rec",
                                 extra_args=tuple(extra)) as svc:
-                label = "MCAP+Rerun on" if recording else "no recording"
+                label = "MCAP+Rerun on" if recording else f"no recording, {workers} worker" + (
+                    "s" if workers > 1 else "")
                 # warm up: compile caches, the constraint tables of each radius
                 run_phase(endpoint, keys, "warm-up", train(8, "warm"), flood=True,
                           site_length=site.length, timeout=args.timeout)
@@ -140,7 +148,7 @@ def main(argv: list[str] | None = None) -> int:
                         flood=False, site_length=site.length, timeout=args.timeout))
                 rows.append(run_phase(
                     endpoint, keys, f"flood, {label}",
-                    train(args.wheels, "fl" + ("r" if recording else "n")), flood=True,
+                    train(args.wheels, "fl" + ("r" if recording else f"n{workers}")), flood=True,
                     site_length=site.length, timeout=args.timeout))
             if svc.returncode != 0:
                 print(svc.output, file=sys.stderr)
@@ -148,7 +156,7 @@ def main(argv: list[str] | None = None) -> int:
           f"{site.contact}, "
           f"{site.output_sample_rate:g} Hz output), {args.wheels} wheels at 160 km/h, "
           f"physics {args.physics}; wheel on the site for {site.length / SPEED * 1e3:.0f} ms\n")
-    print("| phase                        | served  | p50 [ms] | p99 [ms] | max [ms] | pass./s  "
+    print("| phase                             | served  | p50 [ms] | p99 [ms] | max [ms] | pass./s  "
           "| sim ms | on time   |")
     print("|---|---|---|---|---|---|---|---|")
     for r in rows:
