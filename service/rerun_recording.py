@@ -1,31 +1,48 @@
-"""The service run's Rerun recording: one headless ``.rrd`` with every passage.
+"""The service run's Rerun recording: one headless ``.rrd``, a fixed set of entities.
 
-Entities (one per passage ``<p>`` under each quantity, so that a view of a
-quantity overlays every wheel of the run along the site):
+Every passage goes to the same entities under the site's id ``<site>`` (so the
+entity tree does not grow with the run: a months-long run has as many
+entities as a run of one wheel; ``tests/test_service_rerun.py``):
 
 | entity | what | unit |
 |---|---|---|
-| ``force/<p>`` | contact force F | kN |
-| ``force/<p>/transitions`` | markers: losses/returns of contact, yield/unyield | kN |
-| ``indentation/<p>`` | indentation δ (negative: out of contact) | µm |
-| ``motion/y_c/<p>``, ``motion/y_ck/<p>`` | wheel centre y_C and rigid constraint y_C^k | µm |
-| ``rail/profile`` | the site's rail as the service started | µm |
-| ``rail/dent/<p>`` | accumulated dent depth after passage p (only when it dented) | µm |
-| ``events`` | one text line per passage (peak force, losses, dent) | |
-| ``diagnosis/measured``, ``diagnosis/fit`` | measured and best-fit force of each diagnosis | kN |
-| ``diagnosis/impacts`` | markers: the fitted flat under the wheel | kN |
-| ``diagnosis/verdict`` | one text line per diagnosis (verdict, flat, peak forces) | |
+| ``<site>/force`` | contact force F of every wheel | kN |
+| ``<site>/force/transitions`` | markers: losses/returns of contact, yield/unyield | kN |
+| ``<site>/indentation`` | indentation δ (negative: out of contact) | µm |
+| ``<site>/motion/y_c``, ``<site>/motion/y_ck`` | wheel centre y_C, rigid constraint y_C^k | µm |
+| ``<site>/wheel`` | a text document naming the wheel (id, train, axle, side, speed, load, result) | |
+| ``<site>/passages`` | one text line per passage (peak force, losses, dent) | |
+| ``<site>/rail/profile`` | the site's rail as the service started | µm |
+| ``<site>/rail/dent`` | accumulated dent depth after each passage that dented | µm |
+| ``<site>/diagnosis/measured``, ``.../fit`` | measured and best-fit force of each diagnosis | kN |
+| ``<site>/diagnosis/impacts`` | markers: the fitted flat under the wheel | kN |
+| ``<site>/diagnosis/verdict`` | one text line per diagnosis (verdict, flat, peak forces) | |
 
-The time line ``x_mm`` is the wheel centre's position along the site in
-millimetres (a sequence: Rerun time lines are integers or times); ``passage``
-numbers the passages, ``diagnosis`` the diagnoses (the ``diagnosis/*`` entities are
-the same for every wheel: select one on that time line). All series go in with ``send_columns`` (one call per
-entity and passage). The default blueprint stacks force, indentation, y_C/y_C^k
-and the rail, on the ``x_mm`` time line.
+Time lines (Rerun's are integers: sequences):
+
+- ``passage``: the passage's index in the run, 0, 1, 2, ... Every sample of a
+  passage carries it; on this time line the series views draw each wheel as
+  one vertical stroke from its lowest to its highest value (a trend of the run)
+  and the ``wheel`` document names the wheel at the cursor.
+- ``x_mm``: ``passage·10⁶ + position along the site in mm``. Each passage has
+  its own kilometre of this time line, so the wheels lie end to end and never
+  overlap (one entity drawing wheels that share positions would zig-zag between
+  them). Passage 3 at 450 mm along the site is ``x_mm`` = 3 000 450. The
+  default blueprint's plots show the ±500 m around the time cursor on it, i.e.
+  exactly one wheel: click a line of the ``Passages`` log (or step the cursor)
+  to see that wheel, named beside the force plot.
+- ``diagnosis`` and ``diagnosis_mm``: the same for diagnoses (index ``d``,
+  ``d·10⁶ + mm``). A diagnosis whose passage was recorded in this run (among
+  the last ``KEPT_PASSAGE_INDEXES``) is drawn in that passage's slot of
+  ``x_mm`` as well, beside the simulated wheel.
+
+All series go in with ``send_columns`` (one call per entity and passage, ~0.5 ms
+for 1 350 samples). Sites must be shorter than 500 m (half a slot).
 """
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from pathlib import Path
 
 import numpy as np
@@ -39,6 +56,12 @@ from schemas.messages import PassageResult, RailState
 X_TIMELINE = "x_mm"
 PASSAGE_TIMELINE = "passage"
 DIAGNOSIS_TIMELINE = "diagnosis"
+DIAGNOSIS_X_TIMELINE = "diagnosis_mm"
+SLOT_MM = 1_000_000
+"""Length of one passage's slot on ``x_mm`` (1 km): passage p starts at p·SLOT_MM."""
+MAX_SITE_MM = SLOT_MM // 2
+KEPT_PASSAGE_INDEXES = 4096
+"""Passage ids remembered (newest) to draw a diagnosis beside its wheel; bounded."""
 VERDICT_LEVELS = {"ok": "INFO", "watch": "WARN", "inspect": "WARN", "remove": "ERROR"}
 TRANSITION_COLORS = {
     "loss": (230, 60, 60),
@@ -48,30 +71,64 @@ TRANSITION_COLORS = {
 }
 
 
-def default_blueprint() -> rrb.Blueprint:
-    """Force on top (the thing to look at), then indentation, motion and the rail."""
+def entities(site_id: str) -> dict[str, str]:
+    """{role: entity path} of a site's recording (the whole, fixed set)."""
+    root = f"/{rr.escape_entity_path_part(site_id)}"
+    return {
+        "force": f"{root}/force", "transitions": f"{root}/force/transitions",
+        "indentation": f"{root}/indentation", "y_c": f"{root}/motion/y_c",
+        "y_ck": f"{root}/motion/y_ck", "motion": f"{root}/motion", "wheel": f"{root}/wheel",
+        "passages": f"{root}/passages", "rail": f"{root}/rail",
+        "profile": f"{root}/rail/profile", "dent": f"{root}/rail/dent",
+        "diagnosis": f"{root}/diagnosis", "measured": f"{root}/diagnosis/measured",
+        "fit": f"{root}/diagnosis/fit", "impacts": f"{root}/diagnosis/impacts",
+        "verdict": f"{root}/diagnosis/verdict",
+    }
+
+
+def one_wheel_window() -> list[rrb.VisibleTimeRange]:
+    """±half a slot around the cursor on ``x_mm`` and ``diagnosis_mm``: exactly one wheel.
+
+    The cursor at 3 000 450 (passage 3, 450 mm) shows 2 500 450 … 3 500 450: all of
+    passage 3 (3 000 000 … 3 000 000 + site length), nothing of passages 2 or 4.
+    """
+    half = SLOT_MM // 2
+    return [
+        rrb.VisibleTimeRange(timeline, start=rrb.TimeRangeBoundary.cursor_relative(seq=-half),
+                             end=rrb.TimeRangeBoundary.cursor_relative(seq=half))
+        for timeline in (X_TIMELINE, DIAGNOSIS_X_TIMELINE)
+    ]
+
+
+def default_blueprint(site_id: str) -> rrb.Blueprint:
+    """The wheel at the time cursor: its force (with its name beside it) on top, then
+    indentation, motion, the rail, the passages and the diagnoses."""
+    e = entities(site_id)
+    window = one_wheel_window()
     return rrb.Blueprint(
         rrb.Vertical(
-            rrb.TimeSeriesView(
-                name="Contact force F [kN] along the site [mm]", origin="/force",
-                plot_legend=rrb.PlotLegend(visible=False),
-            ),
-            rrb.TimeSeriesView(
-                name="Indentation δ [µm]", origin="/indentation",
-                plot_legend=rrb.PlotLegend(visible=False),
-            ),
             rrb.Horizontal(
                 rrb.TimeSeriesView(
-                    name="Wheel centre y_C and constraint y_C^k [µm]", origin="/motion",
-                    plot_legend=rrb.PlotLegend(visible=False),
+                    name="Contact force F [kN] of the wheel at the cursor (x_mm: passage·10⁶ + mm)",
+                    origin=e["force"], time_ranges=window,
                 ),
-                rrb.TimeSeriesView(name="Rail: profile and dents [µm]", origin="/rail"),
-                rrb.TextLogView(name="Passages", origin="/events"),
+                rrb.TextDocumentView(name="Wheel at the cursor", origin=e["wheel"]),
+                column_shares=[3, 1],
+            ),
+            rrb.TimeSeriesView(name="Indentation δ [µm]", origin=e["indentation"],
+                               time_ranges=window),
+            rrb.Horizontal(
+                rrb.TimeSeriesView(name="Wheel centre y_C and constraint y_C^k [µm]",
+                                   origin=e["motion"], time_ranges=window),
+                rrb.TimeSeriesView(name="Rail: profile (slot 0), then the dent after each "
+                                   "denting passage [µm]", origin=e["rail"]),
+                rrb.TextLogView(name="Passages (click one to show its wheel)",
+                                origin=e["passages"]),
             ),
             rrb.Horizontal(
                 rrb.TimeSeriesView(name="Diagnosis: measured and fitted force [kN]",
-                                   origin="/diagnosis"),
-                rrb.TextLogView(name="Verdicts", origin="/diagnosis/verdict"),
+                                   origin=e["diagnosis"], time_ranges=window),
+                rrb.TextLogView(name="Verdicts", origin=e["verdict"]),
                 column_shares=[3, 1],
             ),
             row_shares=[3, 2, 2, 2],
@@ -82,94 +139,147 @@ def default_blueprint() -> rrb.Blueprint:
     )
 
 
-def x_index(x_m: NDArray[np.float64]) -> NDArray[np.int64]:
-    """Positions in m → the ``x_mm`` sequence."""
-    return np.rint(np.asarray(x_m) * 1000.0).astype(np.int64)
+def x_index(x_m: NDArray[np.float64], slot: int = 0) -> NDArray[np.int64]:
+    """Positions in m of the passage in ``slot`` → the ``x_mm`` sequence.
+
+    >>> x_index(np.array([0.0, 0.45]), slot=3).tolist()
+    [3000000, 3000450]
+    """
+    mm = np.rint(np.asarray(x_m) * 1000.0).astype(np.int64)
+    if len(mm) and (mm.min() < -MAX_SITE_MM or mm.max() >= MAX_SITE_MM):
+        raise ValueError(
+            f"positions {mm.min()} … {mm.max()} mm do not fit in half a slot of the x_mm "
+            f"time line (±{MAX_SITE_MM} mm): the recording draws sites shorter than 500 m")
+    return mm + np.int64(slot) * SLOT_MM
+
+
+def wheel_document(index: int, r: PassageResult) -> str:
+    """The markdown that names the wheel of passage ``index`` (the ``wheel`` entity)."""
+    s = r.summary
+    kinds = ", ".join(f"{tr.kind} at {(tr.x if tr.x is not None else r.speed * tr.t) * 1e3:.0f} mm"
+                      for tr in r.transitions[:12])
+    more = f" (+{len(r.transitions) - 12} more)" if len(r.transitions) > 12 else ""
+    return (
+        f"### {r.passage_id}\n\n"
+        f"passage {index} of the run (x_mm {index * SLOT_MM:_} …)\n\n"
+        f"- train **{r.train_id}**, axle {r.axle_index}, {r.side} wheel\n"
+        f"- speed {r.speed:.1f} m/s, site {r.site_length:g} m, rail revision {r.rail_revision}\n"
+        f"- peak F **{s.peak_force / 1e3:.1f} kN**, min F {s.min_force / 1e3:.1f} kN\n"
+        f"- contact losses {s.contact_losses}, out of contact {s.time_out_of_contact * 1e3:.2f} ms\n"
+        f"- max δ {s.max_indentation * 1e6:.1f} µm, dent {s.max_dent * 1e6:.2f} µm\n"
+        f"- transitions: {kinds or 'none'}{more}\n"
+    )
 
 
 class RerunRecording:
-    """Writes one ``.rrd``; not thread-safe (the twin's recorder thread owns it)."""
+    """Writes one ``.rrd``; not thread-safe (the recorder's thread or process owns it)."""
 
     def __init__(self, path: Path, site_id: str, *, recording_id: str | None = None) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
         self.path = path
+        self.entities = entities(site_id)
         self.rec = rr.RecordingStream(f"railtwin-{site_id}", recording_id=recording_id)
-        self.rec.save(str(path), default_blueprint=default_blueprint())
+        self.rec.save(str(path), default_blueprint=default_blueprint(site_id))
         self._passages = 0
         self._diagnoses = 0
+        self._index_of: OrderedDict[str, int] = OrderedDict()
         self._closed = False
+        self._style()
+
+    def _style(self) -> None:
+        """Names and colours of the series, once (static)."""
+        e, log = self.entities, self.rec.log
+        log(e["force"], rr.SeriesLines(names="F [kN]", aggregation_policy="MinMax"), static=True)
+        log(e["transitions"], rr.SeriesPoints(markers="circle", marker_sizes=4.0,
+                                              names="transitions"), static=True)
+        log(e["indentation"], rr.SeriesLines(names="δ [µm]", aggregation_policy="MinMax"),
+            static=True)
+        log(e["y_c"], rr.SeriesLines(names="y_C [µm]"), static=True)
+        log(e["y_ck"], rr.SeriesLines(names="y_C^k [µm]"), static=True)
+        log(e["profile"], rr.SeriesLines(names="rail y_r at start [µm]"), static=True)
+        log(e["dent"], rr.SeriesLines(names="accumulated dent [µm]"), static=True)
+        log(e["measured"], rr.SeriesLines(names="measured F [kN]", colors=(120, 120, 120)),
+            static=True)
+        log(e["fit"], rr.SeriesLines(names="fit F [kN]", colors=(230, 60, 60)), static=True)
+        log(e["impacts"], rr.SeriesPoints(markers="cross", marker_sizes=6.0, names="impacts"),
+            static=True)
+
+    def passage_index(self, passage_id: str) -> int | None:
+        """The index (``passage`` time line) of a recent passage, None if not recorded."""
+        return self._index_of.get(passage_id)
+
+    def _slot(self, index: int, n: int) -> list[rr.TimeColumn]:
+        return [rr.TimeColumn(PASSAGE_TIMELINE, sequence=np.full(n, index, dtype=np.int64))]
 
     def log_rail(self, x: NDArray[np.float64], y: NDArray[np.float64]) -> None:
-        """The site's rail profile (µm) along the site."""
-        self.rec.log("rail/profile", rr.SeriesLines(names="rail y_r [µm]"), static=True)
+        """The site's rail profile (µm) as the service started, in slot 0 of ``x_mm``."""
         self.rec.send_columns(
-            "rail/profile",
+            self.entities["profile"],
             indexes=[rr.TimeColumn(X_TIMELINE, sequence=x_index(x))],
             columns=rr.Scalars.columns(scalars=np.asarray(y) * 1e6),
         )
 
     def log_dent(self, passage_id: str, state: RailState) -> None:
-        """The accumulated dent depth after ``passage_id`` (µm, positive down)."""
-        entity = f"rail/dent/{passage_id}"
-        self.rec.log(entity, rr.SeriesLines(names=f"dent after {passage_id} [µm]"), static=True)
+        """The accumulated dent depth (µm, positive down) after ``passage_id``, in its slot."""
+        index = self.passage_index(passage_id)
+        if index is None:
+            index = max(self._passages - 1, 0)
+        x = np.asarray(state.x)
         self.rec.send_columns(
-            entity,
-            indexes=[rr.TimeColumn(X_TIMELINE, sequence=x_index(np.asarray(state.x)))],
+            self.entities["dent"],
+            indexes=[rr.TimeColumn(X_TIMELINE, sequence=x_index(x, index)),
+                     *self._slot(index, len(x))],
             columns=rr.Scalars.columns(scalars=np.asarray(state.dent) * 1e6),
         )
 
     def log_passage(self, result: PassageResult) -> None:
-        """Force, indentation, y_C, y_C^k, transitions and a text line for one passage."""
-        pid = result.passage_id
+        """Force, indentation, y_C, y_C^k, transitions, the wheel's name and a text line,
+        all in the next slot (``passage`` = index, ``x_mm`` = index·10⁶ + mm)."""
+        e = self.entities
+        index = self._passages
         x = np.asarray(result.x)
-        xs = x_index(x)
-        n = len(xs)
-        index = [
-            rr.TimeColumn(X_TIMELINE, sequence=xs),
-            rr.TimeColumn(PASSAGE_TIMELINE, sequence=np.full(n, self._passages, dtype=np.int64)),
-        ]
+        index_cols = [rr.TimeColumn(X_TIMELINE, sequence=x_index(x, index)),
+                      *self._slot(index, len(x))]
         force = np.asarray(result.force)
         series = (
-            (f"force/{pid}", force * 1e-3, f"{pid} F [kN]"),
-            (f"indentation/{pid}", np.asarray(result.indentation) * 1e6, f"{pid} δ [µm]"),
-            (f"motion/y_c/{pid}", np.asarray(result.y_c) * 1e6, f"{pid} y_C [µm]"),
-            (f"motion/y_ck/{pid}", np.asarray(result.y_ck) * 1e6, f"{pid} y_C^k [µm]"),
+            (e["force"], force * 1e-3),
+            (e["indentation"], np.asarray(result.indentation) * 1e6),
+            (e["y_c"], np.asarray(result.y_c) * 1e6),
+            (e["y_ck"], np.asarray(result.y_ck) * 1e6),
         )
-        for entity, values, _name in series:
-            self.rec.send_columns(entity, indexes=index, columns=rr.Scalars.columns(scalars=values))
+        for entity, values in series:
+            self.rec.send_columns(entity, indexes=index_cols,
+                                  columns=rr.Scalars.columns(scalars=values))
         if result.transitions:
             tx = np.array([tr.x if tr.x is not None else result.speed * tr.t
                            for tr in result.transitions])
-            tf = np.interp(tx, x, force) * 1e-3 if n else np.zeros(len(tx))
-            colors = [TRANSITION_COLORS[tr.kind] for tr in result.transitions]
-            entity = f"force/{pid}/transitions"
-            self.rec.log(
-                entity, rr.SeriesPoints(markers="circle", marker_sizes=4.0,
-                                        names=f"{pid} transitions"), static=True,
-            )
+            tf = np.interp(tx, x, force) * 1e-3 if len(x) else np.zeros(len(tx))
             self.rec.send_columns(
-                entity,
-                indexes=[
-                    rr.TimeColumn(X_TIMELINE, sequence=x_index(tx)),
-                    rr.TimeColumn(PASSAGE_TIMELINE,
-                                  sequence=np.full(len(tx), self._passages, dtype=np.int64)),
-                ],
+                e["transitions"],
+                indexes=[rr.TimeColumn(X_TIMELINE, sequence=x_index(tx, index)),
+                         *self._slot(index, len(tx))],
                 columns=[
                     *rr.Scalars.columns(scalars=tf),
-                    *rr.SeriesPoints.columns(colors=colors),
+                    *rr.SeriesPoints.columns(
+                        colors=[TRANSITION_COLORS[tr.kind] for tr in result.transitions]),
                 ],
             )
         s = result.summary
-        self.rec.set_time(X_TIMELINE, sequence=0)
-        self.rec.set_time(PASSAGE_TIMELINE, sequence=self._passages)
-        self.rec.log(
-            "events",
-            rr.TextLog(
-                f"{pid}: peak {s.peak_force / 1e3:.1f} kN, {s.contact_losses} contact losses, "
-                f"max δ {s.max_indentation * 1e6:.1f} µm, dent {s.max_dent * 1e6:.2f} µm",
-                level="WARN" if s.contact_losses or s.max_dent > 0 else "INFO",
-            ),
-        )
+        self.rec.set_time(X_TIMELINE, sequence=index * SLOT_MM)
+        self.rec.set_time(PASSAGE_TIMELINE, sequence=index)
+        self.rec.log(e["wheel"], rr.TextDocument(wheel_document(index, result),
+                                                 media_type=rr.MediaType.MARKDOWN))
+        self.rec.log(e["passages"], rr.TextLog(
+            f"#{index} {result.passage_id} (train {result.train_id} axle {result.axle_index} "
+            f"{result.side}): peak {s.peak_force / 1e3:.1f} kN, {s.contact_losses} contact "
+            f"losses, max δ {s.max_indentation * 1e6:.1f} µm, dent {s.max_dent * 1e6:.2f} µm",
+            level="WARN" if s.contact_losses or s.max_dent > 0 else "INFO",
+        ))
+        self.rec.reset_time()
+        self._index_of[result.passage_id] = index
+        self._index_of.move_to_end(result.passage_id)
+        while len(self._index_of) > KEPT_PASSAGE_INDEXES:
+            self._index_of.popitem(last=False)
         self._passages += 1
 
     def log_diagnosis(
@@ -179,50 +289,50 @@ class RerunRecording:
         """Measured vs fitted force (kN) along the site, the impacts and the verdict.
 
         ``t`` (s) are the measured times, ``x`` (m) the wheel centre's positions then;
-        ``impacts_x`` (m) where the fitted flat meets the rail.
+        ``impacts_x`` (m) where the fitted flat meets the rail. Drawn in the diagnosis's
+        slot of ``diagnosis_mm`` and, if its passage was recorded, in that passage's slot
+        of ``x_mm``.
         """
-        del t  # the series go along x_mm, like the passages
-        if self._diagnoses == 0:
-            self.rec.log("diagnosis/measured", rr.SeriesLines(
-                names="measured F [kN]", colors=(120, 120, 120)), static=True)
-            self.rec.log("diagnosis/fit", rr.SeriesLines(
-                names="fit F [kN]", colors=(230, 60, 60)), static=True)
-            self.rec.log("diagnosis/impacts", rr.SeriesPoints(
-                markers="cross", marker_sizes=6.0, names="impacts"), static=True)
-        n = len(x)
-        index = [
-            rr.TimeColumn(X_TIMELINE, sequence=x_index(x)),
-            rr.TimeColumn(DIAGNOSIS_TIMELINE, sequence=np.full(n, self._diagnoses, dtype=np.int64)),
-        ]
-        self.rec.send_columns("diagnosis/measured", indexes=index,
+        del t  # the series go along the site, like the passages
+        e = self.entities
+        d = self._diagnoses
+        index = self.passage_index(diag.passage_id)
+
+        def indexes(positions: NDArray[np.float64]) -> list[rr.TimeColumn]:
+            n = len(positions)
+            cols = [rr.TimeColumn(DIAGNOSIS_X_TIMELINE, sequence=x_index(positions, d)),
+                    rr.TimeColumn(DIAGNOSIS_TIMELINE, sequence=np.full(n, d, dtype=np.int64))]
+            if index is not None:
+                cols += [rr.TimeColumn(X_TIMELINE, sequence=x_index(positions, index)),
+                         *self._slot(index, n)]
+            return cols
+
+        at = indexes(x)
+        self.rec.send_columns(e["measured"], indexes=at,
                               columns=rr.Scalars.columns(scalars=measured * 1e-3))
-        self.rec.send_columns("diagnosis/fit", indexes=index,
+        self.rec.send_columns(e["fit"], indexes=at,
                               columns=rr.Scalars.columns(scalars=fitted * 1e-3))
-        if len(impacts_x) and n:
+        if len(impacts_x) and len(x):
             order = np.argsort(x)
             f = np.interp(impacts_x, x[order], fitted[order]) * 1e-3
-            self.rec.send_columns(
-                "diagnosis/impacts",
-                indexes=[
-                    rr.TimeColumn(X_TIMELINE, sequence=x_index(impacts_x)),
-                    rr.TimeColumn(DIAGNOSIS_TIMELINE,
-                                  sequence=np.full(len(impacts_x), self._diagnoses,
-                                                   dtype=np.int64)),
-                ],
-                columns=rr.Scalars.columns(scalars=f),
-            )
+            self.rec.send_columns(e["impacts"], indexes=indexes(impacts_x),
+                                  columns=rr.Scalars.columns(scalars=f))
         flat = diag.flat
         found = (f"{flat.kind} {flat.length * 1e3:.1f} mm "
                  f"[{flat.length_low * 1e3:.1f}, {flat.length_high * 1e3:.1f}]"
                  if flat is not None else "no flat")
-        self.rec.set_time(X_TIMELINE, sequence=0)
-        self.rec.set_time(DIAGNOSIS_TIMELINE, sequence=self._diagnoses)
-        self.rec.log("diagnosis/verdict", rr.TextLog(
+        self.rec.set_time(DIAGNOSIS_X_TIMELINE, sequence=d * SLOT_MM)
+        self.rec.set_time(DIAGNOSIS_TIMELINE, sequence=d)
+        if index is not None:
+            self.rec.set_time(X_TIMELINE, sequence=index * SLOT_MM)
+            self.rec.set_time(PASSAGE_TIMELINE, sequence=index)
+        self.rec.log(e["verdict"], rr.TextLog(
             f"{diag.passage_id}: {diag.verdict.upper()}, {found}, measured peak "
             f"{diag.peak_force_measured / 1e3:.0f} kN, fit peak {diag.peak_force_fit / 1e3:.0f} kN"
             + (f"; {'; '.join(diag.reasons)}" if diag.reasons else ""),
             level=VERDICT_LEVELS[diag.verdict],
         ))
+        self.rec.reset_time()
         self._diagnoses += 1
 
     def close(self) -> None:

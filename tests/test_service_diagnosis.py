@@ -28,6 +28,7 @@ from service.diagnosis import Diagnoser
 from service.feeder import declare_passage_publisher, wait_matching
 from service.keyspace import SiteKeys
 from service.mcap_log import LoggedMessage, decode, read_log
+from service.rerun_recording import entities
 from service.service_process import ServiceProcess
 from service.site import load_site
 from service.site_physics import SitePhysics
@@ -35,7 +36,7 @@ from service.twin import json_encoding
 from service.zenoh_session import build_config, free_tcp_endpoint
 from sim_core.diagnosis.forward import Flat
 from sim_core.diagnosis.synthetic import Perturbations, synthetic_measurement
-from tests.test_service_rerun import rrd_columns
+from tests.test_service_rerun import of_passage, passage_indexes, rrd_columns, rrd_texts
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE_SITE = ROOT / "examples/site.toml"
@@ -236,8 +237,19 @@ def test_rrd_draws_the_diagnoses(run: Run) -> None:
     rrd = run.service.rrd_file
     assert rrd is not None and rrd.is_file()
     cols = rrd_columns(rrd)
-    for entity in ("/diagnosis/measured", "/diagnosis/fit", "/diagnosis/impacts"):
-        assert entity in cols, sorted(cols)
+    e = entities(load_site(EXAMPLE_SITE).site_id)
+    for role in ("measured", "fit", "impacts"):
+        assert e[role] in cols, sorted(cols)
     n = len(measurement("m0").force)
-    assert len(cols["/diagnosis/measured"]["values"]) == 2 * n
-    assert np.all(np.isfinite(cols["/diagnosis/fit"]["values"]))
+    measured = cols[e["measured"]]
+    assert len(measured["values"]) == 2 * n
+    assert sorted(set(measured["diagnosis"])) == [0, 1]
+    assert np.all(np.isfinite(cols[e["fit"]]["values"]))
+    # each diagnosis is drawn in its wheel's slot too, beside the simulated passage
+    index = passage_indexes(rrd, load_site(EXAMPLE_SITE).site_id)
+    verdicts = rrd_texts(rrd)[e["verdict"]]
+    assert len(verdicts) == 2
+    for at, text in verdicts:
+        pid = text.split(":", 1)[0]
+        assert at == index[pid]
+        assert len(of_passage(measured, at)["values"]) == n

@@ -35,9 +35,10 @@ from schemas.scenario import FlatOutline
 from service.feeder import Collector, declare_passage_publisher, query_health, wait_matching
 from service.keyspace import SiteKeys
 from service.mcap_log import LoggedMessage, decode, model_for_schema, read_log
+from service.rerun_recording import entities
 from service.service_process import ServiceProcess
 from service.zenoh_session import build_config, free_tcp_endpoint
-from tests.test_service_rerun import rrd_columns
+from tests.test_service_rerun import of_passage, passage_indexes, rrd_columns, rrd_entities
 
 ROOT = Path(__file__).resolve().parents[1]
 SITE_ID = "e2e"
@@ -262,16 +263,20 @@ def test_rrd_has_every_passage(first_run: Run) -> None:
     rrd = first_run.service.rrd_file
     assert rrd is not None and rrd.is_file()
     cols = rrd_columns(rrd)
+    e = entities(SITE_ID)
+    index = passage_indexes(rrd, SITE_ID)
+    assert sorted(index.values()) == list(range(len(index)))
     for pid, o in first_run.collector.outcomes.items():
         r = o.result
         assert r is not None
-        for entity in (f"/force/{pid}", f"/indentation/{pid}", f"/motion/y_c/{pid}",
-                       f"/motion/y_ck/{pid}"):
-            assert entity in cols
-        np.testing.assert_array_equal(cols[f"/force/{pid}"]["values"], np.asarray(r.force) * 1e-3)
-        np.testing.assert_array_equal(cols[f"/indentation/{pid}"]["values"],
-                                      np.asarray(r.indentation) * 1e6)
-    assert "/rail/profile" in cols
+        for role, values in (("force", np.asarray(r.force) * 1e-3),
+                             ("indentation", np.asarray(r.indentation) * 1e6),
+                             ("y_c", np.asarray(r.y_c) * 1e6),
+                             ("y_ck", np.asarray(r.y_ck) * 1e6)):
+            np.testing.assert_array_equal(of_passage(cols[e[role]], index[pid])["values"],
+                                          values)
+    assert e["profile"] in cols
+    assert rrd_entities(rrd) <= set(e.values())  # a fixed set, whatever the passages
 
 
 def comparable(m: LoggedMessage) -> Any:

@@ -10,29 +10,68 @@ import rerun.chunk as rc
 
 from schemas.messages import PassageResult, RailState
 from schemas.result import Summary, Transition
-from service.rerun_recording import RerunRecording
+from service.rerun_recording import SLOT_MM, RerunRecording, entities
+
+INDEXES = ("x_mm", "passage", "diagnosis", "diagnosis_mm")
 
 
 def rrd_columns(path: Path) -> dict[str, dict[str, np.ndarray]]:
-    """{entity: {column: values}} of the non-static scalar and index columns of a .rrd."""
+    """{entity: {column: values}} of the non-static scalar and index columns of a .rrd.
+
+    Index columns an entity has in some chunks only are padded with -1."""
     out: dict[str, dict[str, np.ndarray]] = {}
     for chunk in rc.RrdReader(str(path)).stream():
         batch: pa.RecordBatch = chunk.to_record_batch()
         if "Scalars:scalars" not in batch.schema.names:
             continue
         cols = out.setdefault(str(chunk.entity_path), {})
-        for name in ("x_mm", "passage"):
-            if name in batch.schema.names:
-                new = np.asarray(batch[name].cast(pa.int64()))
-                cols[name] = np.concatenate([cols.get(name, np.empty(0, np.int64)), new])
+        before = len(cols.get("values", ()))
+        for name in INDEXES:
+            new = (np.asarray(batch[name].cast(pa.int64())) if name in batch.schema.names
+                   else np.full(batch.num_rows, -1, np.int64))
+            cols[name] = np.concatenate([cols.get(name, np.full(before, -1, np.int64)), new])
         values = np.asarray(batch["Scalars:scalars"].flatten())
         cols["values"] = np.concatenate([cols.get("values", np.empty(0)), values])
     return out
 
 
-def result(pid: str, n: int = 50) -> PassageResult:
+def rrd_texts(path: Path) -> dict[str, list[tuple[int, str]]]:
+    """{entity: [(passage index or -1, text)]} of the TextLog and TextDocument rows."""
+    out: dict[str, list[tuple[int, str]]] = {}
+    for chunk in rc.RrdReader(str(path)).stream():
+        batch: pa.RecordBatch = chunk.to_record_batch()
+        column = next((n for n in ("TextLog:text", "TextDocument:text")
+                       if n in batch.schema.names), None)
+        if column is None:
+            continue
+        texts = batch[column].flatten().to_pylist()
+        passages = (batch["passage"].cast(pa.int64()).to_pylist()
+                    if "passage" in batch.schema.names else [-1] * len(texts))
+        out.setdefault(str(chunk.entity_path), []).extend(zip(passages, texts, strict=True))
+    return out
+
+
+def rrd_entities(path: Path) -> set[str]:
+    """Every entity path that has data (static or not), properties aside."""
+    return {str(c.entity_path) for c in rc.RrdReader(str(path)).stream()
+            if not str(c.entity_path).startswith("/__")}
+
+
+def passage_indexes(path: Path, site_id: str) -> dict[str, int]:
+    """{passage id: its index on the ``passage`` time line}, from the ``wheel`` documents."""
+    docs = rrd_texts(path).get(entities(site_id)["wheel"], [])
+    return {text.split("\n", 1)[0].removeprefix("### "): index for index, text in docs}
+
+
+def of_passage(cols: dict[str, np.ndarray], index: int) -> dict[str, np.ndarray]:
+    """The rows of one passage (``passage`` time line)."""
+    keep = cols["passage"] == index
+    return {k: v[keep] for k, v in cols.items()}
+
+
+def result(pid: str, n: int = 50, load: float = 50e3) -> PassageResult:
     x = np.linspace(0.0, 2.0, n)
-    force = 50e3 + 1e3 * np.sin(x)
+    force = load + 1e3 * np.sin(x)
     return PassageResult(
         site_id="s", passage_id=pid, train_id="t", axle_index=0, side="right", timestamp=0.0,
         speed=40.0, sample_rate=1000.0, t_start=0.0, site_length=2.0, x=x.tolist(),
@@ -47,28 +86,67 @@ def result(pid: str, n: int = 50) -> PassageResult:
     )
 
 
-def test_recording_reads_back(tmp_path: Path) -> None:
-    path = tmp_path / "run.rrd"
+def dented(passages_done: int) -> RailState:
+    return RailState(site_id="s", revision=1, passages_done=passages_done, x=[0.0, 1.0, 2.0],
+                     y=[0.0, -1e-6, 0.0], dent=[0.0, 1e-6, 0.0], max_dent=1e-6)
+
+
+def record(path: Path, n: int) -> list[PassageResult]:
+    """``n`` passages (each with its own load), a dent after the second."""
     rec = RerunRecording(path, "s")
     rec.log_rail(np.linspace(0.0, 2.0, 21), np.zeros(21))
-    a, b = result("p0"), result("p1")
-    rec.log_passage(a)
-    rec.log_passage(b)
-    rec.log_dent("p1", RailState(site_id="s", revision=1, passages_done=2, x=[0.0, 1.0, 2.0],
-                                 y=[0.0, -1e-6, 0.0], dent=[0.0, 1e-6, 0.0], max_dent=1e-6))
+    results = [result(f"p{i}", load=50e3 + 100.0 * i) for i in range(n)]
+    for i, r in enumerate(results):
+        rec.log_passage(r)
+        if i == 1:
+            rec.log_dent(r.passage_id, dented(i + 1))
     rec.close()
+    return results
+
+
+def test_recording_reads_back(tmp_path: Path) -> None:
+    path = tmp_path / "run.rrd"
+    a, b = record(path, 2)
 
     reader = rc.RrdReader(str(path))
     assert len(reader.blueprints()) == 1
+    e = entities("s")
     cols = rrd_columns(path)
-    for pid in ("p0", "p1"):
-        for entity in (f"/force/{pid}", f"/indentation/{pid}", f"/motion/y_c/{pid}",
-                       f"/motion/y_ck/{pid}", f"/force/{pid}/transitions"):
-            assert entity in cols, entity
-    assert "/rail/profile" in cols and "/rail/dent/p1" in cols
-    f0 = cols["/force/p0"]
+    for role in ("force", "indentation", "y_c", "y_ck", "transitions", "profile", "dent"):
+        assert e[role] in cols, role
+    f0 = of_passage(cols[e["force"]], 0)
     np.testing.assert_array_equal(f0["values"], np.asarray(a.force) * 1e-3)
     np.testing.assert_array_equal(f0["x_mm"], np.rint(np.asarray(a.x) * 1000).astype(np.int64))
-    assert set(cols["/force/p1"]["passage"]) == {1}
-    np.testing.assert_array_equal(cols["/force/p0/transitions"]["x_mm"], [400, 800])
-    np.testing.assert_allclose(cols["/rail/dent/p1"]["values"], [0.0, 1.0, 0.0])
+    f1 = of_passage(cols[e["force"]], 1)
+    np.testing.assert_array_equal(f1["values"], np.asarray(b.force) * 1e-3)
+    np.testing.assert_array_equal(f1["x_mm"] - SLOT_MM,
+                                  np.rint(np.asarray(b.x) * 1000).astype(np.int64))
+    np.testing.assert_array_equal(of_passage(cols[e["transitions"]], 0)["x_mm"], [400, 800])
+    dent = cols[e["dent"]]
+    assert set(dent["passage"]) == {1}
+    np.testing.assert_allclose(dent["values"], [0.0, 1.0, 0.0])
+    np.testing.assert_array_equal(dent["x_mm"], SLOT_MM + np.array([0, 1000, 2000]))
+
+
+def test_the_entity_set_does_not_grow_with_the_passages(tmp_path: Path) -> None:
+    few, many = tmp_path / "few.rrd", tmp_path / "many.rrd"
+    record(few, 3)
+    results = record(many, 30)
+    assert rrd_entities(few) == rrd_entities(many)
+    assert rrd_entities(many) <= set(entities("s").values())
+
+    cols = rrd_columns(many)
+    texts = rrd_texts(many)
+    e = entities("s")
+    assert passage_indexes(many, "s") == {r.passage_id: i for i, r in enumerate(results)}
+    wheels = dict(texts[e["wheel"]])
+    lines = dict(texts[e["passages"]])
+    slots = set()
+    for index, r in enumerate(results):  # every wheel: by its index, with its id
+        force = of_passage(cols[e["force"]], index)
+        np.testing.assert_array_equal(force["values"], np.asarray(r.force) * 1e-3)
+        slots.add(int(force["x_mm"].min()) // SLOT_MM)
+        assert wheels[index].startswith(f"### {r.passage_id}\n")
+        assert f"peak F **{r.summary.peak_force / 1e3:.1f} kN**" in wheels[index]
+        assert lines[index].startswith(f"#{index} {r.passage_id} (train t axle 0 right)")
+    assert slots == set(range(len(results)))  # one slot each: wheels never overlap on x_mm
