@@ -8,6 +8,15 @@ and a child process, on the other core, writes the files: same front as
 ``service.recorder.Recorder`` (``message``, ``passage``, ``dent``, ``rail``,
 ``diagnosis``, ``close``), same order, same files.
 
+The queue is bounded in bytes, so a flood cannot grow the service's memory
+without limit: the recorder writes ~4–10 ms a passage on two shared cores, about
+as slow as the simulation, and each passage queues ~330 kB (its result twice and
+its series as JSON). Past ``rerun_backlog_bytes`` waiting (default 64 MB) a
+passage, dent or diagnosis is not drawn in Rerun (the MCAP log has it; the
+recording's passage log says so), which lets the MCAP writer catch up; past
+``mcap_backlog_bytes`` (default 256 MB) a message waits for room (backpressure on
+the twin) rather than being dropped.
+
 The child ignores SIGINT/SIGTERM (the service stops it through the queue, so
 that every queued message is written and the files get their footers) and
 finishes its files on its own if the service dies: it watches its parent.
@@ -50,6 +59,12 @@ class RecordingPlan:
     """Retention limit of the recordings directory (``service.retention``); None: keep all."""
     metadata: tuple[tuple[str, str], ...] = ()
     """Written as a ``railtwin`` metadata record at the start of every MCAP file."""
+    rerun_backlog_bytes: int = 64 * 2**20
+    """Beyond this many bytes waiting for the child, passages are not drawn in Rerun."""
+    mcap_backlog_bytes: int = 256 * 2**20
+    """Beyond this many bytes waiting, a message for the MCAP log waits for room."""
+    mcap_wait_timeout: float = 60.0
+    """A message that found no room within this many seconds is dropped (and counted)."""
 
     @property
     def rrd_path(self) -> Path | None:
@@ -64,13 +79,17 @@ class ProcessRecorder:
         ctx = mp.get_context("spawn")
         self._queue: Any = ctx.Queue()
         self._status: Any = ctx.Queue()
+        self._pending: Any = ctx.Value("q", 0)  # bytes queued, not yet written by the child
         self._process = ctx.Process(
-            target=_child_main, args=(plan, self._queue, self._status, os.getpid()),
+            target=_child_main,
+            args=(plan, self._queue, self._status, os.getpid(), self._pending),
             name="railtwin-recorder", daemon=True,
         )
         self._process.start()
         self.failures = 0
         self.last_failure: str | None = None
+        self.not_drawn = 0
+        """Passages, dents and diagnoses not drawn in Rerun because the child was behind."""
         self._mcap_path: str | None = None
         self._closed = False
 
@@ -79,28 +98,72 @@ class ProcessRecorder:
     def message(self, topic: str, model: type[BaseModel], data: bytes, log_time_ns: int,
                 publish_time_ns: int | None = None) -> None:
         if self.plan.mcap and not self._closed:
-            self._queue.put(("m", topic, model.__name__, data, log_time_ns, publish_time_ns))
+            self._put_waiting(("m", len(data), topic, model.__name__, data, log_time_ns,
+                               publish_time_ns))
 
     def passage(self, result: PassageResult, data: bytes | None = None) -> None:
         """``data``: the result's JSON if the caller has it already (saves serialising twice)."""
         if self.plan.rerun and not self._closed:
-            self._queue.put(("p", data if data is not None else result.model_dump_json().encode()))
+            data = data if data is not None else result.model_dump_json().encode()
+            self._put_drawing(("p", len(data), data), result.passage_id)
 
     def dent(self, passage_id: str, state: RailState) -> None:
         if self.plan.rerun and not self._closed:
-            self._queue.put(("d", passage_id, state.model_dump_json().encode()))
+            data = state.model_dump_json().encode()
+            self._put_drawing(("d", len(data), passage_id, data), None)
 
     def rail(self, state: RailState) -> None:
         if self.plan.rerun and not self._closed:
-            self._queue.put(("r", state.model_dump_json().encode()))
+            data = state.model_dump_json().encode()
+            self._put(("r", len(data), data))
 
     def diagnosis(self, diag: Diagnosis, curves_t: Sequence[float], measured: Sequence[float],
                   fitted: Sequence[float], x: Sequence[float],
                   impacts_x: Sequence[float]) -> None:
         """Plain lists (or arrays) and the diagnosis's JSON cross to the child."""
         if self.plan.rerun and not self._closed:
-            self._queue.put(("g", diag.model_dump_json().encode(), list(curves_t),
-                             list(measured), list(fitted), list(x), list(impacts_x)))
+            data = diag.model_dump_json().encode()
+            size = len(data) + 8 * (len(curves_t) + len(measured) + len(fitted) + len(x)
+                                    + len(impacts_x))
+            self._put_drawing(("g", size, data, list(curves_t), list(measured), list(fitted),
+                               list(x), list(impacts_x)), None)
+
+    def pending_bytes(self) -> int:
+        """Bytes queued for the child and not yet written (what the queue holds in memory)."""
+        return int(self._pending.value)
+
+    def _put(self, item: tuple[Any, ...]) -> None:
+        with self._pending.get_lock():
+            self._pending.value += item[1]
+        self._queue.put(item)
+
+    def _put_drawing(self, item: tuple[Any, ...], passage_id: str | None) -> None:
+        """Queue a Rerun drawing, unless the child is ``rerun_backlog_bytes`` behind."""
+        behind = self.pending_bytes()
+        if behind + item[1] <= self.plan.rerun_backlog_bytes:
+            self._put(item)
+            return
+        self.not_drawn += 1
+        if passage_id is not None:  # the recording's passage log says which wheel is missing
+            note = f"{passage_id}".encode()
+            self._put(("s", len(note), note, behind))
+
+    def _put_waiting(self, item: tuple[Any, ...]) -> None:
+        """Queue a message for the MCAP log, waiting while ``mcap_backlog_bytes`` are."""
+        limit = self.plan.mcap_backlog_bytes
+        if self.pending_bytes() + item[1] > limit:
+            deadline = time.monotonic() + self.plan.mcap_wait_timeout
+            while self.pending_bytes() > 0 and self.pending_bytes() + item[1] > limit:
+                if not self._process.is_alive() or time.monotonic() > deadline:
+                    self.failures += 1
+                    self.last_failure = (
+                        f"MCAP message on {item[2]} dropped: the recorder is "
+                        f"{self.pending_bytes() / 2**20:.0f} MB behind and "
+                        + ("has died" if not self._process.is_alive() else
+                           f"made no room within {self.plan.mcap_wait_timeout:g} s"))
+                    return
+                time.sleep(0.002)
+        self._put(item)
 
     def backlog(self) -> int:
         try:
@@ -122,6 +185,12 @@ class ProcessRecorder:
         if self._closed:
             return
         self._closed = True
+        if self.not_drawn:
+            self.failures += 1
+            self.last_failure = (
+                f"{self.not_drawn} passages, dents or diagnoses not drawn in the Rerun recording: "
+                f"the recorder was more than {self.plan.rerun_backlog_bytes / 2**20:g} MB behind "
+                "(the MCAP log has them all)")
         self._queue.put(None)
         self._process.join(timeout)
         if self._process.is_alive():
@@ -144,7 +213,8 @@ class ProcessRecorder:
                 self.last_failure = text
 
 
-def _child_main(plan: RecordingPlan, inbox: Any, status: Any, parent_pid: int) -> None:
+def _child_main(plan: RecordingPlan, inbox: Any, status: Any, parent_pid: int,
+                pending: Any) -> None:
     """The child's loop: write every queued item in order; flush MCAP regularly."""
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, signal.SIG_IGN)
@@ -179,6 +249,9 @@ def _child_main(plan: RecordingPlan, inbox: Any, status: Any, parent_pid: int) -
                 _write(item, models, mcap, rerun)
             except Exception as exc:  # a recording failure is reported, never fatal
                 status.put(("fail", f"{type(exc).__name__}: {exc}"))
+            if item:
+                with pending.get_lock():
+                    pending.value -= item[1]
             if mcap is not None:
                 if mcap.path is not None and mcap.path != last_path:
                     last_path = mcap.path
@@ -197,25 +270,28 @@ def _child_main(plan: RecordingPlan, inbox: Any, status: Any, parent_pid: int) -
 
 
 def _write(item: tuple[Any, ...], models: dict[str, type[BaseModel]], mcap: Any, rerun: Any) -> None:
+    """One queued item: ``(kind, bytes it holds, ...)``."""
     if not item:
         return
-    kind = item[0]
+    kind, _size, *rest = item
     if kind == "m" and mcap is not None:
-        _, topic, model_name, data, log_time_ns, publish_time_ns = item
+        topic, model_name, data, log_time_ns, publish_time_ns = rest
         mcap.write(topic, models[model_name], data, log_time_ns, publish_time_ns)
     elif kind == "p" and rerun is not None:
-        rerun.log_passage(PassageResult.model_validate_json(item[1]))
+        rerun.log_passage(PassageResult.model_validate_json(rest[0]))
+    elif kind == "s" and rerun is not None:
+        rerun.log_not_drawn(rest[0].decode(), rest[1])
     elif kind == "d" and rerun is not None:
-        rerun.log_dent(item[1], RailState.model_validate_json(item[2]))
+        rerun.log_dent(rest[0], RailState.model_validate_json(rest[1]))
     elif kind == "g" and rerun is not None:
         import numpy as np
 
-        _, diag, t, measured, fitted, x, impacts_x = item
+        diag, t, measured, fitted, x, impacts_x = rest
         rerun.log_diagnosis(Diagnosis.model_validate_json(diag),
                             *(np.asarray(a, dtype=np.float64)
                               for a in (t, measured, fitted, x, impacts_x)))
     elif kind == "r" and rerun is not None:
         import numpy as np
 
-        state = RailState.model_validate_json(item[1])
+        state = RailState.model_validate_json(rest[0])
         rerun.log_rail(np.asarray(state.x), np.asarray(state.y))

@@ -282,6 +282,18 @@ class RerunRecording:
             self._index_of.popitem(last=False)
         self._passages += 1
 
+    def log_not_drawn(self, passage_id: str, behind_bytes: int) -> None:
+        """A passage the recorder was too far behind to draw: its slot stays empty but for
+        a line in the passage log (the MCAP log has the passage)."""
+        index = self._passages
+        self.rec.set_time(X_TIMELINE, sequence=index * SLOT_MM)
+        self.rec.set_time(PASSAGE_TIMELINE, sequence=index)
+        self.rec.log(self.entities["passages"], rr.TextLog(
+            f"#{index} {passage_id}: not drawn, the recorder was {behind_bytes / 2**20:.0f} MB "
+            "behind (the MCAP log has it)", level="WARN"))
+        self.rec.reset_time()
+        self._passages += 1
+
     def log_diagnosis(
         self, diag: Diagnosis, t: NDArray[np.float64], measured: NDArray[np.float64],
         fitted: NDArray[np.float64], x: NDArray[np.float64], impacts_x: NDArray[np.float64],
