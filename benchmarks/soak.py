@@ -1,18 +1,26 @@
-"""``make soak``: a burst of 10 000 passages, then kill -9 of every process mid-stream.
+"""``make soak``: a long burst (memory must plateau), then kill -9 of every process mid-stream.
 
-    .venv/bin/python -m benchmarks.soak [--burst 10000] [--kill-after 2000]
+    .venv/bin/python -m benchmarks.soak [--burst 5000] [--rounds 4] [--max-growth-mb 48]
+                                        [--kill-after 2000] [--skip-kill]
 
-1. **Burst**: ``--burst`` passages (every 20th a bad payload) sent at once from this
-   process to ``railtwin serve`` on loopback (the example site, recording on). Checks
-   answered + rejected = sent, and samples the resident memory of the service's whole
-   process tree every 0.5 s.
+1. **Burst**: ``--rounds`` times, ``--burst`` passages (every 20th a bad payload) sent at
+   once from this process to ``railtwin serve`` on loopback (the example site, recording
+   on), each round when the previous one is answered. Checks answered + rejected = sent.
+   The resident memory of each process of the service (service, recorder, physics
+   worker) is sampled every 0.5 s and printed every tenth of the passages, and after
+   each round once it is answered. **Asserts** that the whole tree grew by at most
+   ``--max-growth-mb`` from the end of the middle round to the end of the last one
+   (memory that plateaus, not memory that grows with the number of passages; before the
+   recorder's queue was bounded and its ``.rrd`` split into parts, it grew ~6 MB per
+   1 000 passages, 127 MB over the second half of 20 000).
 2. **kill -9**: a second service gets ``--kill-after`` passages at once; after 1.5 s every
    one of its processes (service, physics worker, recorder) is killed with SIGKILL. Then
    ``railtwin recover`` turns its cut MCAP and its input journal into a finished log,
    and the report says how many of the inputs sent and of the results received are in it.
 
-Prints a table; asserts nothing (it runs for minutes; the tests hold the same properties
-on small numbers). Nothing leaves loopback.
+It runs for minutes (not part of ``make test``; the tests hold the same properties on
+small numbers). Timings are noisy on shared cores; the memory figures are the point.
+Nothing leaves loopback.
 """
 
 from __future__ import annotations
@@ -26,6 +34,7 @@ import tempfile
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 from schemas.messages import WheelPassage
 from service.feeder import Collector, declare_passage_publisher, wait_matching
@@ -58,15 +67,43 @@ def tree(pid: int) -> list[int]:
 
 
 def rss_mb(pids: list[int]) -> float:
-    total = 0
-    for p in pids:
-        try:
-            for line in Path(f"/proc/{p}/status").read_text().splitlines():
-                if line.startswith("VmRSS:"):
-                    total += int(line.split()[1])
-        except OSError:
-            continue
-    return total / 1024
+    return sum(process_rss_mb(p) for p in pids)
+
+
+def process_rss_mb(pid: int) -> float:
+    """Resident memory of one process (VmRSS), MB; 0 if it is gone."""
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024
+    except OSError:
+        pass
+    return 0.0
+
+
+def role(pid: int, root: int) -> str:
+    """service (the root), recorder (has the .rrd open), tracker (multiprocessing's
+    resource tracker) or physics (a physics worker)."""
+    if pid == root:
+        return "service"
+    try:
+        if b"resource_tracker" in Path(f"/proc/{pid}/cmdline").read_bytes():
+            return "tracker"
+        for fd in Path(f"/proc/{pid}/fd").iterdir():
+            if os.readlink(fd).endswith(".rrd"):
+                return "recorder"
+    except OSError:
+        pass
+    return "physics"
+
+
+def rss_by_role(root: int) -> dict[str, float]:
+    """{role: MB} of the service's process tree (physics workers summed)."""
+    out: dict[str, float] = {}
+    for p in tree(root):
+        r = role(p, root)
+        out[r] = out.get(r, 0.0) + process_rss_mb(p)
+    return out
 
 
 def passages(n: int, prefix: str) -> list[bytes]:
@@ -82,53 +119,85 @@ def passages(n: int, prefix: str) -> list[bytes]:
     return out
 
 
-def burst(n: int, tmp: Path) -> dict[str, float]:
+def answered_count(collector: Collector) -> int:
+    with collector._lock:  # the subscriber's thread adds to it
+        return (sum(o.result_at is not None for o in collector.outcomes.values())
+                + len(collector.errors))
+
+
+def burst(n: int, rounds: int, tmp: Path) -> dict[str, Any]:
+    """``rounds`` bursts of ``n`` passages each to one service, each sent at once when the
+    previous one is answered; the RSS of every process sampled every 0.5 s."""
     site = load_site(SITE)
     keys = SiteKeys(site.site_id)
     endpoint = free_tcp_endpoint()
-    payloads = passages(n, "burst")
-    with ServiceProcess(SITE, listen=endpoint, recordings=tmp / "burst") as svc, \
+    with ServiceProcess(SITE, listen=endpoint, recordings=tmp / "burst",
+                        start_timeout=900.0) as svc, \
             open_session(build_config(connect=[endpoint])) as session:
+        assert svc.proc is not None
+        root = svc.proc.pid
         collector = Collector(keys, decode_results=False)
         sub = session.declare_subscriber(keys.all_outputs, collector)
         pub = declare_passage_publisher(session, keys)
         wait_matching(pub, 30.0)
-        pids = tree(svc.proc.pid)
-        peak, samples = 0.0, []
+        samples: list[tuple[int, dict[str, float]]] = []
         stop = threading.Event()
 
         def watch() -> None:
-            nonlocal peak
             while not stop.wait(0.5):
-                m = rss_mb(tree(svc.proc.pid))
-                samples.append(m)
-                peak = max(peak, m)
+                samples.append((answered_count(collector), rss_by_role(root)))
 
+        start_rss = rss_by_role(root)
         watcher = threading.Thread(target=watch, daemon=True)
-        start_rss = rss_mb(pids)
         watcher.start()
         t0 = time.monotonic()
-        for data in payloads:
-            pub.put(data)
-        deadline = time.monotonic() + 900.0
-        answered = 0
-        while time.monotonic() < deadline:
-            with collector._lock:  # the subscriber's thread adds to it
-                answered = (sum(o.result_at is not None for o in collector.outcomes.values())
-                            + len(collector.errors))
-            if answered >= n:
-                break
-            time.sleep(0.2)
+        round_end: list[dict[str, float]] = []
+        for r in range(rounds):
+            for data in passages(n, f"burst{r}"):
+                pub.put(data)
+            deadline = time.monotonic() + 900.0
+            while answered_count(collector) < (r + 1) * n and time.monotonic() < deadline:
+                time.sleep(0.2)
+            time.sleep(1.0)  # the recorder catches up
+            round_end.append(rss_by_role(root))
         elapsed = time.monotonic() - t0
         stop.set()
         watcher.join()
         sub.undeclare()
+        answered = answered_count(collector)
         with collector._lock:
             results = sum(o.result_at is not None for o in collector.outcomes.values())
-    return {"sent": n, "results": results, "rejected": len(collector.errors),
-            "answered": answered, "seconds": elapsed, "passages_per_s": results / elapsed,
-            "rss_start_mb": start_rss, "rss_peak_mb": peak,
-            "rss_end_mb": samples[-1] if samples else start_rss}
+            rejected = len(collector.errors)
+    total = n * rounds
+    series = rss_series(samples, total, points=10)
+    half = (round_end[len(round_end) // 2 - 1] if len(round_end) >= 2
+            else next((m for a, m in samples if a >= total // 2), start_rss))
+    end = round_end[-1] if round_end else start_rss
+    return {"sent": total, "results": results, "rejected": rejected, "answered": answered,
+            "seconds": round(elapsed, 1), "passages_per_s": round(results / elapsed, 1),
+            "rss_start_mb": rounded(start_rss),
+            "rss_peak_mb": round(max((sum(m.values()) for _, m in samples), default=0.0)),
+            "rss_at_half_mb": rounded(half), "rss_end_mb": rounded(end),
+            "rss_after_each_round_mb": [rounded(m) for m in round_end],
+            "rss_every_tenth_mb": series,
+            "growth_second_half_mb": round(sum(end.values()) - sum(half.values()), 1),
+            "recorder_notes": [line for line in svc.lines if "recording failures" in line]}
+
+
+def rounded(m: dict[str, float]) -> dict[str, float]:
+    return {**{k: round(v, 1) for k, v in sorted(m.items())}, "total": round(sum(m.values()), 1)}
+
+
+def rss_series(samples: list[tuple[int, dict[str, float]]], total: int,
+               points: int) -> list[dict[str, Any]]:
+    """The first sample at or after each ``total/points`` passages answered."""
+    out: list[dict[str, Any]] = []
+    for k in range(1, points + 1):
+        at = total * k // points
+        found = next((m for a, m in samples if a >= at), None)
+        if found is not None:
+            out.append({"answered": at, **rounded(found)})
+    return out
 
 
 def kill_mid_stream(n: int, tmp: Path) -> dict[str, float]:
@@ -181,13 +250,28 @@ def kill_mid_stream(n: int, tmp: Path) -> dict[str, float]:
 
 def main() -> int:
     p = argparse.ArgumentParser(prog="python -m benchmarks.soak", description=__doc__.split("\n")[0])
-    p.add_argument("--burst", type=int, default=10_000)
+    p.add_argument("--burst", type=int, default=5_000, help="passages per round")
+    p.add_argument("--rounds", type=int, default=4,
+                   help="send the burst this many times to the same service")
+    p.add_argument("--max-growth-mb", type=float, default=48.0,
+                   help="RSS growth of the whole tree allowed over the second half")
     p.add_argument("--kill-after", type=int, default=2_000)
+    p.add_argument("--skip-kill", action="store_true", help="only the burst")
     a = p.parse_args()
     with tempfile.TemporaryDirectory() as t:
         tmp = Path(t)
-        b = burst(a.burst, tmp)
+        b = burst(a.burst, a.rounds, tmp)
         print("burst:", json.dumps(b, indent=1), flush=True)
+        growth = b["growth_second_half_mb"]
+        if b["answered"] != b["sent"] or growth > a.max_growth_mb:
+            print(f"soak FAILED: answered {b['answered']} of {b['sent']}; the service's "
+                  f"processes grew by {growth:.0f} MB over the second half of the burst "
+                  f"(limit {a.max_growth_mb:g} MB)", flush=True)
+            return 1
+        print(f"soak: memory bounded: {growth:+.0f} MB over the second half of "
+              f"{b['sent']} passages (limit {a.max_growth_mb:g} MB)", flush=True)
+        if a.skip_kill:
+            return 0
         k = kill_mid_stream(a.kill_after, tmp)
         print("kill -9:", json.dumps(k, indent=1), flush=True)
     return 0

@@ -63,6 +63,8 @@ class RecordingPlan:
     """Beyond this many bytes waiting for the child, passages are not drawn in Rerun."""
     mcap_backlog_bytes: int = 256 * 2**20
     """Beyond this many bytes waiting, a message for the MCAP log waits for room."""
+    rrd_part_passages: int = 5000
+    """Passages and diagnoses per ``.rrd`` part (``service.rerun_recording``)."""
     mcap_wait_timeout: float = 60.0
     """A message that found no room within this many seconds is dropped (and counted)."""
 
@@ -91,6 +93,7 @@ class ProcessRecorder:
         self.not_drawn = 0
         """Passages, dents and diagnoses not drawn in Rerun because the child was behind."""
         self._mcap_path: str | None = None
+        self._rrd_path: str | None = None
         self._closed = False
 
     # --- front -------------------------------------------------------------------------
@@ -177,6 +180,10 @@ class ProcessRecorder:
         return self._mcap_path
 
     def rrd_path(self) -> str | None:
+        """The ``.rrd`` part being written (or the last one)."""
+        self._poll()
+        if self._rrd_path is not None:
+            return self._rrd_path
         path = self.plan.rrd_path
         return str(path) if path is not None else None
 
@@ -208,6 +215,8 @@ class ProcessRecorder:
                 return
             if kind == "path":
                 self._mcap_path = text
+            elif kind == "rrd":
+                self._rrd_path = text
             else:
                 self.failures += 1
                 self.last_failure = text
@@ -230,7 +239,9 @@ def _child_main(plan: RecordingPlan, inbox: Any, status: Any, parent_pid: int,
         if plan.mcap else None
     )
     path = plan.rrd_path
-    rerun = RerunRecording(path, plan.site_id) if path is not None else None
+    rerun = (RerunRecording(path, plan.site_id, part_passages=plan.rrd_part_passages)
+             if path is not None else None)
+    rrd_path = path
     last_flush = time.monotonic()
     last_path: Path | None = None
     try:
@@ -247,6 +258,9 @@ def _child_main(plan: RecordingPlan, inbox: Any, status: Any, parent_pid: int,
                 break
             try:
                 _write(item, models, mcap, rerun)
+                if rerun is not None and rerun.path != rrd_path:
+                    rrd_path = rerun.path
+                    status.put(("rrd", str(rrd_path)))
             except Exception as exc:  # a recording failure is reported, never fatal
                 status.put(("fail", f"{type(exc).__name__}: {exc}"))
             if item:

@@ -38,10 +38,18 @@ Time lines (Rerun's are integers: sequences):
 
 All series go in with ``send_columns`` (one call per entity and passage, ~0.5 ms
 for 1 350 samples). Sites must be shorter than 500 m (half a slot).
+
+Parts: the SDK keeps each file's footer (an entry per chunk) in memory until the
+file is closed, ~7 MB per 1 000 passages, so after ``PART_PASSAGES`` passages and
+diagnoses the recording goes on in ``<stem>-002.rrd``, ``-003`` ... with the same
+recording id (the viewer opened on all parts shows one recording; each part has
+the blueprint, the styles and the rail profile again). Passage indexes go on
+across parts.
 """
 
 from __future__ import annotations
 
+import uuid
 from collections import OrderedDict
 from pathlib import Path
 
@@ -60,6 +68,8 @@ DIAGNOSIS_X_TIMELINE = "diagnosis_mm"
 SLOT_MM = 1_000_000
 """Length of one passage's slot on ``x_mm`` (1 km): passage p starts at p·SLOT_MM."""
 MAX_SITE_MM = SLOT_MM // 2
+PART_PASSAGES = 5000
+"""Passages (and diagnoses) per ``.rrd`` part: the SDK holds a part's footer in memory."""
 KEPT_PASSAGE_INDEXES = 4096
 """Passage ids remembered (newest) to draw a diagnosis beside its wheel; bounded."""
 VERDICT_LEVELS = {"ok": "INFO", "watch": "WARN", "inspect": "WARN", "remove": "ERROR"}
@@ -174,17 +184,50 @@ def wheel_document(index: int, r: PassageResult) -> str:
 class RerunRecording:
     """Writes one ``.rrd``; not thread-safe (the recorder's thread or process owns it)."""
 
-    def __init__(self, path: Path, site_id: str, *, recording_id: str | None = None) -> None:
+    def __init__(self, path: Path, site_id: str, *, recording_id: str | None = None,
+                 part_passages: int = PART_PASSAGES) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
-        self.path = path
+        self.site_id = site_id
         self.entities = entities(site_id)
-        self.rec = rr.RecordingStream(f"railtwin-{site_id}", recording_id=recording_id)
-        self.rec.save(str(path), default_blueprint=default_blueprint(site_id))
+        self.recording_id = recording_id or str(uuid.uuid4())
+        self.part_passages = part_passages
+        self.files: list[Path] = []
+        self._first = path
         self._passages = 0
         self._diagnoses = 0
+        self._in_part = 0
+        self._rail: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
         self._index_of: OrderedDict[str, int] = OrderedDict()
         self._closed = False
+        self._open(path)
+
+    @property
+    def path(self) -> Path:
+        """The part being written."""
+        return self.files[-1]
+
+    def _open(self, path: Path) -> None:
+        self.rec = rr.RecordingStream(f"railtwin-{self.site_id}", recording_id=self.recording_id)
+        self.rec.save(str(path), default_blueprint=default_blueprint(self.site_id))
+        self.files.append(path)
+        self._in_part = 0
         self._style()
+        if self._rail is not None:
+            self.log_rail(*self._rail)
+
+    def _next_part(self) -> None:
+        """Close the part after ``part_passages`` drawings and open ``<stem>-NNN.rrd``.
+
+        The SDK keeps every chunk's entry of the file's footer in memory until the file
+        is closed (~7 MB per 1 000 passages), so one endless file would grow the recorder
+        without bound; the parts share the recording id, and the viewer opened on all of
+        them (``rerun run*.rrd``) shows one recording.
+        """
+        if self._in_part < self.part_passages:
+            return
+        self.rec.flush()
+        rr.disconnect(self.rec)
+        self._open(self._first.with_name(f"{self._first.stem}-{len(self.files) + 1:03d}.rrd"))
 
     def _style(self) -> None:
         """Names and colours of the series, once (static)."""
@@ -212,7 +255,9 @@ class RerunRecording:
         return [rr.TimeColumn(PASSAGE_TIMELINE, sequence=np.full(n, index, dtype=np.int64))]
 
     def log_rail(self, x: NDArray[np.float64], y: NDArray[np.float64]) -> None:
-        """The site's rail profile (µm) as the service started, in slot 0 of ``x_mm``."""
+        """The site's rail profile (µm) as the service started, in slot 0 of ``x_mm`` (of
+        every part)."""
+        self._rail = (np.asarray(x), np.asarray(y))
         self.rec.send_columns(
             self.entities["profile"],
             indexes=[rr.TimeColumn(X_TIMELINE, sequence=x_index(x))],
@@ -235,6 +280,7 @@ class RerunRecording:
     def log_passage(self, result: PassageResult) -> None:
         """Force, indentation, y_C, y_C^k, transitions, the wheel's name and a text line,
         all in the next slot (``passage`` = index, ``x_mm`` = index·10⁶ + mm)."""
+        self._next_part()
         e = self.entities
         index = self._passages
         x = np.asarray(result.x)
@@ -281,10 +327,12 @@ class RerunRecording:
         while len(self._index_of) > KEPT_PASSAGE_INDEXES:
             self._index_of.popitem(last=False)
         self._passages += 1
+        self._in_part += 1
 
     def log_not_drawn(self, passage_id: str, behind_bytes: int) -> None:
         """A passage the recorder was too far behind to draw: its slot stays empty but for
         a line in the passage log (the MCAP log has the passage)."""
+        self._next_part()
         index = self._passages
         self.rec.set_time(X_TIMELINE, sequence=index * SLOT_MM)
         self.rec.set_time(PASSAGE_TIMELINE, sequence=index)
@@ -293,6 +341,7 @@ class RerunRecording:
             "behind (the MCAP log has it)", level="WARN"))
         self.rec.reset_time()
         self._passages += 1
+        self._in_part += 1
 
     def log_diagnosis(
         self, diag: Diagnosis, t: NDArray[np.float64], measured: NDArray[np.float64],
@@ -306,6 +355,7 @@ class RerunRecording:
         of ``x_mm``.
         """
         del t  # the series go along the site, like the passages
+        self._next_part()
         e = self.entities
         d = self._diagnoses
         index = self.passage_index(diag.passage_id)
@@ -346,6 +396,7 @@ class RerunRecording:
         ))
         self.rec.reset_time()
         self._diagnoses += 1
+        self._in_part += 1
 
     def close(self) -> None:
         """Flush and write the footer."""

@@ -91,9 +91,9 @@ def dented(passages_done: int) -> RailState:
                      y=[0.0, -1e-6, 0.0], dent=[0.0, 1e-6, 0.0], max_dent=1e-6)
 
 
-def record(path: Path, n: int) -> list[PassageResult]:
+def record(path: Path, n: int, part_passages: int = 5000) -> list[PassageResult]:
     """``n`` passages (each with its own load), a dent after the second."""
-    rec = RerunRecording(path, "s")
+    rec = RerunRecording(path, "s", part_passages=part_passages)
     rec.log_rail(np.linspace(0.0, 2.0, 21), np.zeros(21))
     results = [result(f"p{i}", load=50e3 + 100.0 * i) for i in range(n)]
     for i, r in enumerate(results):
@@ -150,3 +150,25 @@ def test_the_entity_set_does_not_grow_with_the_passages(tmp_path: Path) -> None:
         assert f"peak F **{r.summary.peak_force / 1e3:.1f} kN**" in wheels[index]
         assert lines[index].startswith(f"#{index} {r.passage_id} (train t axle 0 right)")
     assert slots == set(range(len(results)))  # one slot each: wheels never overlap on x_mm
+
+
+def test_a_long_run_goes_on_in_parts_of_one_recording(tmp_path: Path) -> None:
+    results = record(tmp_path / "run.rrd", 25, part_passages=10)
+    parts = [tmp_path / "run.rrd", tmp_path / "run-002.rrd", tmp_path / "run-003.rrd"]
+    assert sorted(tmp_path.glob("*.rrd")) == sorted(parts)
+    ids = {r.recording_id for p in parts for r in rc.RrdReader(str(p)).recordings()}
+    assert len(ids) == 1  # the viewer shows the parts as one recording
+    e = entities("s")
+    found: dict[str, int] = {}
+    for part, first in zip(parts, (0, 10, 20), strict=True):
+        assert rrd_entities(part) == rrd_entities(parts[0])  # styles and rail in every part
+        assert len(rc.RrdReader(str(part)).blueprints()) == 1
+        index = passage_indexes(part, "s")
+        assert sorted(index.values()) == list(range(first, min(first + 10, 25)))
+        found |= index
+        cols = rrd_columns(part)
+        for pid, i in index.items():
+            np.testing.assert_array_equal(of_passage(cols[e["force"]], i)["values"],
+                                          np.asarray(results[i].force) * 1e-3)
+            assert pid == results[i].passage_id
+    assert len(found) == 25
