@@ -4,7 +4,7 @@
 #   make demo     start the twin on loopback, stream a sample train through it, print a line per wheel
 #   make bench    run the benchmarks (benchmarks/run_all.py)
 #   make figures  draw the paper's figures into figures/
-#   make soak     10 000-passage burst and kill -9 mid-stream, then recover (several minutes)
+#   make soak     20 000-passage burst (memory must plateau), kill -9 mid-stream, recover (minutes)
 #   make validate the wheel-flat diagnosis on 90 synthetic + 15 measured-tread passages (~2 min)
 #   make lint     ruff and mypy only
 #
