@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import doctest
 from pathlib import Path
 
 import numpy as np
 import pyarrow as pa
 import rerun.chunk as rc
 
+import service.rerun_recording
 from schemas.messages import PassageResult, RailState
 from schemas.result import Summary, Transition
 from service.rerun_recording import SLOT_MM, RerunRecording, entities
@@ -172,3 +174,8 @@ def test_a_long_run_goes_on_in_parts_of_one_recording(tmp_path: Path) -> None:
                                           np.asarray(results[i].force) * 1e-3)
             assert pid == results[i].passage_id
     assert len(found) == 25
+
+
+def test_the_slot_example_holds() -> None:
+    result = doctest.testmod(service.rerun_recording)
+    assert result.attempted >= 1 and result.failed == 0
