@@ -61,6 +61,7 @@ from schemas.messages import (
 from schemas.site import SiteConfig
 from service import limits
 from service.input_journal import InputJournal
+from service.kept_passages import KeptPassages
 from service.keyspace import HEALTH_KEY, SiteKeys
 from service.physics import PassageSimulator
 from service.physics_worker import (
@@ -122,9 +123,6 @@ class _Waiting:
 
 
 _STOP = object()
-
-KEPT_PASSAGES = 10_000
-"""Valid passages kept (by id, the latest) for measurements that arrive after them."""
 
 MAX_WAITING_MEASUREMENTS = 1_000
 """Measurements waiting for their passage; beyond, the oldest is dropped as unpaired."""
@@ -219,7 +217,7 @@ class Twin:
 
             local = Diagnoser(site, physics=physics)
             self.diagnoser = lambda p, m: diagnose_locally(local, p, m)
-        self._passages: OrderedDict[str, WheelPassage] = OrderedDict()
+        self._passages: KeptPassages[WheelPassage] = KeptPassages()
         self._waiting: OrderedDict[str, _Waiting] = OrderedDict()
         self._diagnosed: OrderedDict[str, None] = OrderedDict()
         self._worker = threading.Thread(target=self._work, name="railtwin-worker", daemon=True)
@@ -421,7 +419,7 @@ class Twin:
         self._log_input(item, passage)
         if self._already_applied(item, passage):
             return
-        self._keep_passage(passage)
+        self._passages.add(passage.passage_id, passage, len(item.payload))
         try:
             self._simulate(item, passage)
         finally:  # the result goes out first; then the measurement waiting for it
@@ -515,13 +513,6 @@ class Twin:
             passage_id=pid, received_at=item.received_ns / 1e9,
         ))
         return True
-
-    def _keep_passage(self, passage: WheelPassage) -> None:
-        kept = self._passages
-        kept.pop(passage.passage_id, None)
-        kept[passage.passage_id] = passage
-        while len(kept) > KEPT_PASSAGES:
-            kept.popitem(last=False)
 
     def _measurement_error(self, item: Inbound, kind: Literal["invalid_measurement", "unpaired",
                                                               "simulation_failed"],
