@@ -23,44 +23,52 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sim_core.contact_laws import ContactLaw, ContactModel
+from sim_core.dent_overlay import DENT_LATTICE, DentOverlay, dented_profile
 from sim_core.passage import PassageOutput
 from sim_core.rail import RailProfile
 
-DENT_RAIL_SPACING = 5e-4
-"""Spacing (m) of the dent samples written into the rail. Dents are cm long and shallow
-(curvature below ~0.1 /m in Fig. 8), so chords 0.5 mm long stay within ~1e-8 m of the
-dent while the next wheel's table (a kink at every concave vertex) stays small."""
 
-COSINE_CHORD_ERROR = 1e-9
-"""Largest distance (m) between a cosine rail and the polyline that replaces it once dented:
-a·(π/n)²/2 <= this fixes the samples per wavelength n (32 to 1024)."""
+def plastic_records(
+    output: PassageOutput,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """(t, x_D, δ) of the passage's plastic records that leave a dent.
+
+    A dent still being pressed when the window ends is dropped (else the next wheel
+    would meet a vertical wall where the record stops). Empty for an elastic passage.
+    """
+    t, x, d = output.delta_c_t, output.delta_c_x, output.delta_c
+    if t.size == 0:
+        return t, x, d
+    yields = np.array([tr.t for tr in output.transitions if tr.kind == "yield"])
+    plastic_changes = [tr.kind for tr in output.transitions if tr.kind in ("yield", "unyield")]
+    ends_plastic = (plastic_changes[-1] == "yield") if plastic_changes else True
+    if ends_plastic:
+        if not plastic_changes:
+            return np.empty(0), np.empty(0), np.empty(0)
+        # phase id: number of yields at or before each record (0 = plastic from the start)
+        keep = np.searchsorted(yields, t, side="right") < yields.size
+        t, x, d = t[keep], x[keep], d[keep]
+    return t, x, d
 
 
 def dent_profile(
     output: PassageOutput, contact: ContactModel
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """(x, depth) of the permanent dents of one passage, depth >= 0 (m).
+    """(x, depth) of the permanent dents of one passage by MODEL.md §5's point-wise rule,
+    depth = δ_c - δ_Y >= 0 (m) at the contact point.
 
-    Empty arrays for an elastic passage or a law without permanent set
-    (only the Hertzian–perfectly plastic law leaves dents; MODEL.md §5).
+    Empty arrays for an elastic passage or a law without permanent set (only the
+    Hertzian–perfectly plastic law leaves dents). The rail the next wheel meets is made
+    by ``sim_core.rail_pass`` (the swept envelope, which is this at each circle's lowest
+    point).
     """
-    if contact.law != ContactLaw.HERTZ_PLASTIC or output.delta_c.size == 0:
+    if contact.law != ContactLaw.HERTZ_PLASTIC:
         return np.empty(0), np.empty(0)
-    t, x, d = output.delta_c_t, output.delta_c_x, output.delta_c
-    yields = np.array([tr.t for tr in output.transitions if tr.kind == "yield"])
-    plastic_changes = [tr.kind for tr in output.transitions if tr.kind in ("yield", "unyield")]
-    # phase id: number of yields at or before each record (0 = plastic from the start)
-    phase = np.searchsorted(yields, t, side="right")
-    ends_plastic = (plastic_changes[-1] == "yield") if plastic_changes else True
-    if ends_plastic:
-        keep = (
-            phase < (yields.size if yields.size else 1)
-            if plastic_changes
-            else np.zeros(t.size, bool)
-        )
-        t, x, d, phase = t[keep], x[keep], d[keep], phase[keep]
+    t, x, d = plastic_records(output)
     if t.size == 0:
         return np.empty(0), np.empty(0)
+    yields = np.array([tr.t for tr in output.transitions if tr.kind == "yield"])
+    phase = np.searchsorted(yields, t, side="right")
     depth = np.clip(d - contact.yield_indentation, 0.0, None)
     grid = np.unique(x)
     out = np.zeros(grid.size)
@@ -77,33 +85,6 @@ def dent_profile(
     return grid, out
 
 
-def cosine_samples_per_wavelength(rail: RailProfile) -> int:
-    """Samples per wavelength that keep a dented cosine rail within ``COSINE_CHORD_ERROR``.
-
-    The chord of a·cos between samples λ/n apart deviates by at most a·(π/n)²/2: for the
-    paper's a = 0.1 mm that is n = 703, for a 2 µm corrugation n = 100.
-    """
-    n = np.pi * np.sqrt(abs(rail.amplitude) / (2.0 * COSINE_CHORD_ERROR))
-    return int(min(1024, max(32, np.ceil(n))))
-
-
-def _base_grid(rail: RailProfile, x_start: float, x_end: float) -> NDArray[np.float64]:
-    if rail.kind == "sampled":
-        inside = rail.x[(rail.x > x_start) & (rail.x < x_end)]
-        return np.concatenate(([x_start], inside, [x_end]))
-    if rail.kind == "cosine":
-        n = (
-            int(np.ceil((x_end - x_start) / rail.wavelength * cosine_samples_per_wavelength(rail)))
-            + 1
-        )
-        return np.linspace(x_start, x_end, n)
-    if rail.kind == "step":
-        pos = rail.step_position
-        if x_start < pos < x_end:
-            return np.array([x_start, pos - 1e-12, pos, x_end])
-    return np.array([x_start, x_end])
-
-
 def dented_rail(
     rail: RailProfile,
     dents_x: NDArray[np.float64],
@@ -111,49 +92,25 @@ def dented_rail(
     x_start: float,
     x_end: float,
 ) -> RailProfile:
-    """The rail ``rail`` with dents pressed in, as a sampled profile over [x_start, x_end].
+    """The rail ``rail`` with point-wise dents (``dent_profile``) pressed in, as a sampled
+    profile over [x_start, x_end].
 
-    Inside each dented stretch the rail is resampled on the fixed lattice
-    k·spacing (spacing = ``DENT_RAIL_SPACING``, or the rail's own median sample
-    spacing if finer), replacing the samples there: wheel after wheel the
-    dents land on the same lattice, so samples never crowd together (the union
-    of each pass's records once left samples 1 µm apart and tables of millions
-    of nodes). A step rail's riser becomes a 1e-12 m ramp (a sampled rail has
-    strictly increasing x); outside [x_start, x_end] the result is flat at its
-    end values.
+    The depths are taken on the fixed lattice k·``DENT_LATTICE`` inside each dented
+    stretch (``sim_core.dent_overlay``), so wheel after wheel the dents land on the same
+    points. A step rail's riser becomes a 1e-12 m ramp; outside [x_start, x_end] the
+    result is flat at its end values.
     """
     if dents_x.size == 0 or not np.any(dents_depth > 0):
         return rail
-    base = _base_grid(rail, x_start, x_end)
-    spacing = DENT_RAIL_SPACING
-    if rail.kind == "sampled" and rail.x.size > 2:
-        spacing = min(spacing, float(np.median(np.diff(rail.x))))
-    if rail.kind == "cosine":
-        spacing = min(spacing, rail.wavelength / cosine_samples_per_wavelength(rail))
+    h = DENT_LATTICE
     inside = np.concatenate(([0], (dents_depth > 0.0).astype(np.int8), [0]))
     change = np.flatnonzero(np.diff(inside))
-    first, last = change[0::2], change[1::2] - 1
     n = dents_x.size
-    keep_base = np.ones(base.size, dtype=bool)
     lattice: list[NDArray[np.float64]] = []
-    riser = rail.step_position if rail.kind == "step" else np.nan
-    for i, j in zip(first, last, strict=True):
+    for i, j in zip(change[0::2], change[1::2] - 1, strict=True):
         a = max(dents_x[max(i - 1, 0)], x_start)
         b = min(dents_x[min(j + 1, n - 1)], x_end)
-        keep_base &= ~((base > a) & (base < b) & (np.abs(base - riser) > 1e-9))
-        k = np.arange(np.ceil(a / spacing), np.floor(b / spacing) + 1.0)
-        lattice.append(k * spacing)
-    kept = base[keep_base]
-    pts = np.concatenate(lattice) if lattice else np.empty(0)
-    if kept.size and pts.size:
-        # no lattice point crowding a sample kept outside the dents
-        pos = np.clip(np.searchsorted(kept, pts), 1, kept.size - 1)
-        gap = np.minimum(np.abs(pts - kept[pos - 1]), np.abs(pts - kept[pos]))
-        pts = pts[gap > 0.25 * spacing]
-    grid = np.union1d(kept, pts)
-    grid = grid[(grid >= x_start) & (grid <= x_end)]
-    y = rail.height(grid)
-    if rail.kind == "step" and x_start < rail.step_position < x_end:
-        y[grid == rail.step_position - 1e-12] = 0.0
-    depth = np.interp(grid, dents_x, dents_depth, left=0.0, right=0.0)
-    return RailProfile.sampled(grid, y - depth)
+        lattice.append(np.arange(np.floor(a / h), np.ceil(b / h) + 1.0) * h)
+    x = np.unique(np.concatenate(lattice))
+    depth = np.interp(x, dents_x, dents_depth, left=0.0, right=0.0)
+    return dented_profile(rail, DentOverlay(x, depth, h), x_start, x_end)
