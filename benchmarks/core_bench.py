@@ -56,9 +56,9 @@ from sim_core.constraint_table import ConstraintTable
 from sim_core.contact_laws import ContactLaw
 from sim_core.dents import dent_profile, dented_rail
 from sim_core.multipass import constraint_for, simulate_passes
-from sim_core.rail_pass import RAIL_MARGIN
 from sim_core.passage import Foundation, InitialState, PassageOutput, PassageSpec, simulate_passage
 from sim_core.rail import RailProfile
+from sim_core.rail_pass import RAIL_MARGIN
 from sim_core.roughness import power_law_psd, random_roughness
 from sim_core.wheel import WheelOutline
 

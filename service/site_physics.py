@@ -6,8 +6,9 @@ the rigid constraint of the wheel's outline on the rail. With the
 Hertzian–perfectly plastic law each passage may dent the rail; the next wheel
 sees the dented rail (MODEL.md §5), so passages are simulated in arrival order.
 
-Constraint tables of round wheels depend only on the radius and the rail, and
-are cached per (radius, rail revision); out-of-round wheels are tabulated per
+Each wheel is one ``sim_core.rail_pass``: the rail is the site's base profile
+plus a dent overlay; round wheels' tables are kept per radius and re-tabulated
+only where a new dent changed the rail; out-of-round wheels are tabulated per
 passage (their table depends on the outline and the phase).
 """
 
@@ -16,8 +17,6 @@ from __future__ import annotations
 import math
 import threading
 import time
-from collections import OrderedDict
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -26,18 +25,15 @@ from schemas.result import Summary, Transition
 from schemas.scenario import FlatOutline
 from schemas.site import SiteConfig
 from service import physics_inputs
-from sim_core.constraint import tabulate_constraint, warm_up_constraint
+from sim_core.constraint import warm_up_constraint
 from sim_core.constraint_table import ConstraintTable
 from sim_core.contact_laws import ContactLaw, ContactModel
-from sim_core.dents import dent_profile, dented_rail
 from sim_core.passage import PassageOutput, PassageSpec, simulate_passage
 from sim_core.rail import RailProfile
+from sim_core.rail_pass import ConstraintTables, DentedRail, rail_pass
 from sim_core.summary import summarize
 from sim_core.wheel import WheelOutline
 
-TABLE_MARGIN = 0.01
-"""m of rail tabulated beyond each end of the site (the integrator looks a little ahead)."""
-TABLE_CACHE_SIZE = 32
 RAIL_STATE_SPACING = 1e-3
 """m between the samples of the published rail state."""
 
@@ -52,14 +48,6 @@ def wheel_outline(p: WheelPassage) -> WheelOutline:
     return physics_inputs.wheel_outline(p.outline, p.radius)
 
 
-@dataclass(frozen=True)
-class _Rail:
-    """The rail now, swapped as a whole so readers on other threads see a consistent pair."""
-
-    profile: RailProfile
-    revision: int
-
-
 class SitePhysics:
     """Implements ``service.physics.PassageSimulator`` with ``sim_core``."""
 
@@ -69,29 +57,19 @@ class SitePhysics:
         self.law = ContactLaw.from_name(site.contact)
         self.foundation = physics_inputs.foundation(site.foundation)
         self.base_rail = rail_profile(site)
-        self._rail = _Rail(self.base_rail, 0)
-        self._tables: OrderedDict[tuple[float, int], ConstraintTable] = OrderedDict()
+        # the rail now (base + dents), swapped as a whole so that readers on other threads
+        # see a consistent profile and revision
+        self._rail = DentedRail.of(self.base_rail, 0.0, site.length)
+        self._tables = ConstraintTables()
         self._done = 0
         self._state_lock = threading.Lock()
         self._state_cache: tuple[int, int, RailState] | None = None
 
     # --- simulation --------------------------------------------------------------------
 
-    def _table(self, passage: WheelPassage, rail: _Rail) -> ConstraintTable:
-        x0, x1 = -TABLE_MARGIN, self.site.length + TABLE_MARGIN
-        if passage.outline.kind != "round":
-            return tabulate_constraint(wheel_outline(passage), rail.profile, x0, x1,
-                                       phase=passage.phase)
-        key = (passage.radius, rail.revision)
-        table = self._tables.get(key)
-        if table is None:
-            table = tabulate_constraint(WheelOutline.round(passage.radius), rail.profile, x0, x1)
-            self._tables[key] = table
-            while len(self._tables) > TABLE_CACHE_SIZE:
-                self._tables.popitem(last=False)
-        else:
-            self._tables.move_to_end(key)
-        return table
+    def _table(self, passage: WheelPassage, rail: DentedRail) -> ConstraintTable:
+        return self._tables.table(wheel_outline(passage), rail, 0.0, self.site.length,
+                                  phase=passage.phase)
 
     def contact_model(self, passage: WheelPassage) -> ContactModel:
         model, _ = physics_inputs.contact_model(self.site.contact, self.material,
@@ -129,17 +107,11 @@ class SitePhysics:
             duration=site.length / passage.speed, sample_rate=site.output_sample_rate,
             contact=contact, foundation=self.foundation, initial=None, rtol=site.rtol,
         )
-        out = simulate_passage(self._table(passage, rail), spec)
-        max_dent = 0.0
-        dents_x, depth = dent_profile(out, contact)
-        if depth.size and float(depth.max()) > 0.0:
-            max_dent = float(depth.max())
-            after = dented_rail(rail.profile, dents_x, depth, -TABLE_MARGIN,
-                                site.length + TABLE_MARGIN)
-            self._rail = _Rail(after, rail.revision + 1)
-            self._tables.clear()
+        done = rail_pass(wheel_outline(passage), rail, spec, self._tables, phase=passage.phase)
+        self._rail = done.rail
         self._done += 1
-        return self._result(passage, out, max_dent, rail.revision, time.perf_counter() - start)
+        return self._result(passage, done.output, done.max_dent, rail.revision,
+                            time.perf_counter() - start)
 
     def _result(self, p: WheelPassage, out: PassageOutput, max_dent: float, revision: int,
                 wall: float) -> PassageResult:
@@ -164,8 +136,8 @@ class SitePhysics:
         return rail.profile, rail.revision, self._done
 
     def restore_rail(self, profile: RailProfile, revision: int, done: int) -> None:
-        """Go on from a ``rail_snapshot`` (of a worker process that was stopped)."""
-        self._rail = _Rail(profile, revision)
+        """Go on from a ``rail_snapshot`` (of a worker process that was stopped, or stored)."""
+        self._rail = DentedRail.restored(self.base_rail, profile, revision, 0.0, self.site.length)
         self._done = done
         self._tables.clear()
 

@@ -42,7 +42,7 @@ changes nothing:
     >>> round(float(ov.at(np.array([0.2]))[0]) * 1e3, 3), changed is not None
     (0.41, True)
     >>> half = ov.x[ov.depth > 0]
-    >>> round((half.max() - half.min()) / 2 * 1e3, 1)
+    >>> round(float(half.max() - half.min()) / 2 * 1e3, 1)
     19.5
     >>> ov.pressed(base, np.array([0.2]), np.array([-0.41e-3]), 0.475)[1] is None
     True
@@ -218,7 +218,7 @@ class DentOverlay:
         if centres.size == 0:
             return self, None
         h = self.spacing
-        lo_b, hi_b = base.height_range
+        hi_b = base.height_range[1]
         reach_h = float(hi_b - bottoms.min()) + self.max_depth
         w = math.sqrt(max(reach_h, 0.0) * 2.0 * radius) + h
         k = np.arange(math.floor((centres.min() - w) / h), math.ceil((centres.max() + w) / h) + 1)

@@ -59,6 +59,10 @@ REACH_SLACK = 2e-3
 TABLE_CACHE_SIZE = 32
 """Round wheels' tables kept (one per radius and stretch)."""
 
+KEPT_CHANGES = 256
+"""Revisions whose changed stretch a rail remembers (a table older than that is remade whole)."""
+"""Round wheels' tables kept (one per radius and stretch)."""
+
 
 @dataclass(frozen=True)
 class DentedRail:
@@ -69,8 +73,9 @@ class DentedRail:
     x_lo: float
     x_hi: float
     revision: int = 0
-    changed: tuple[float, float] | None = None
-    """The stretch whose heights the last revision changed (None for revision 0)."""
+    changes: tuple[tuple[float, float], ...] = ()
+    """The stretches whose heights the last ``len(changes)`` revisions changed, oldest first
+    (at most ``KEPT_CHANGES``; a restored rail knows none)."""
     _profile: list[RailProfile] = field(
         default_factory=list, init=False, repr=False, compare=False
     )
@@ -114,7 +119,23 @@ class DentedRail:
         overlay, changed = self.overlay.pressed(self.base, centres, bottoms, radius)
         if changed is None:
             return self
-        return DentedRail(self.base, overlay, self.x_lo, self.x_hi, self.revision + 1, changed)
+        changes = (*self.changes[-KEPT_CHANGES + 1 :], changed)
+        return DentedRail(self.base, overlay, self.x_lo, self.x_hi, self.revision + 1, changes)
+
+    def changed_since(self, revision: int, widen: float = 0.0) -> list[tuple[float, float]] | None:
+        """The stretches changed after ``revision``, each widened by ``widen`` on both sides,
+        merged and sorted; None if not known."""
+        n = self.revision - revision
+        if n < 0 or n > len(self.changes):
+            return None
+        merged: list[tuple[float, float]] = []
+        for a0, b0 in sorted(self.changes[len(self.changes) - n :]):
+            a, b = a0 - widen, b0 + widen
+            if merged and a <= merged[-1][1]:
+                merged[-1] = (merged[-1][0], max(b, merged[-1][1]))
+            else:
+                merged.append((a, b))
+        return merged
 
 
 def splice(table: ConstraintTable, window: ConstraintTable, a: float, b: float) -> ConstraintTable:
@@ -148,10 +169,11 @@ def _round_on(rail: DentedRail, radius: float, a: float, b: float) -> Constraint
     """The round wheel's exact table over [a, b] on the rail's samples within reach of it."""
     e = rail.reach(radius)
     prof = rail.profile
-    lo, hi = max(a - e, rail.x_lo), min(b + e, rail.x_hi)
-    inside = (prof.x > lo) & (prof.x < hi)
-    x = np.concatenate(([lo], prof.x[inside], [hi]))
-    window = RailProfile.sampled(x, prof.height(x))
+    # the profile's own samples (no new vertex: the window's resolution, the finest sample
+    # spacing, is then the whole rail's there), from the last at or before a - e
+    i0 = max(int(np.searchsorted(prof.x, a - e, side="right")) - 1, 0)
+    i1 = min(int(np.searchsorted(prof.x, b + e, side="left")) + 1, prof.x.size)
+    window = RailProfile.sampled(prof.x[i0:i1], prof.y[i0:i1])
     return tabulate_constraint(WheelOutline.round(radius), window, a, b)
 
 
@@ -212,11 +234,11 @@ class ConstraintTables:
             return hit[1]
         if rail.overlay.is_empty:  # the base: a periodic table where it has one
             table = tabulate_constraint(WheelOutline.round(radius), rail.base, x_start, x_end)
-        elif (hit is not None and hit[0] == rail.revision - 1 and rail.changed is not None
-              and hit[1].period == 0.0):
-            e = rail.reach(radius)
-            a, b = rail.changed[0] - e, rail.changed[1] + e
-            table = splice(hit[1], _round_on(rail, radius, a, b), a, b)
+        elif (hit is not None and hit[1].period == 0.0
+              and (changes := rail.changed_since(hit[0], rail.reach(radius))) is not None):
+            table = hit[1]
+            for a, b in changes:
+                table = splice(table, _round_on(rail, radius, a, b), a, b)
             self.spliced += 1
         else:
             table = tabulate_constraint(WheelOutline.round(radius), rail.profile, x_start, x_end)
@@ -264,6 +286,12 @@ def rail_pass(
         return RailPass(out, table, rail, 0.0)
     depth = delta - spec.contact.yield_indentation
     R = wheel.nominal_radius
+    # a press shallower than the dent polyline's own chord error h²/8R (66 nm) is below what
+    # the rail can hold: the next wheel over a dent meets its chords that much early
+    keep = depth > rail.overlay.spacing**2 / (8.0 * R)
+    if not np.any(keep):
+        return RailPass(out, table, rail, 0.0)
+    t, xd, depth = t[keep], xd[keep], depth[keep]
     if wheel.kind == "round" and constraint == "exact":
         # the wheel's circle about its centre, where it stood (y_C + δ_Y above y_C^k - δ)
         centres = spec.speed * t
@@ -273,8 +301,8 @@ def rail_pass(
         bottoms = rail.profile.height(xd) - depth
     after = rail.pressed(centres, bottoms, R)
     grown = 0.0
-    if after is not rail and after.changed is not None:
-        probe = after.overlay.x[(after.overlay.x >= after.changed[0])
-                                & (after.overlay.x <= after.changed[1])]
+    if after is not rail:
+        a, b = after.changes[-1]
+        probe = after.overlay.x[(after.overlay.x >= a) & (after.overlay.x <= b)]
         grown = float(np.max(after.overlay.at(probe) - rail.overlay.at(probe), initial=0.0))
     return RailPass(out, table, after, grown)
