@@ -54,11 +54,10 @@ from sim_core import paper
 from sim_core.constraint import tabulate_constraint
 from sim_core.constraint_table import ConstraintTable
 from sim_core.contact_laws import ContactLaw
-from sim_core.dents import dent_profile, dented_rail
-from sim_core.multipass import constraint_for, simulate_passes
+from sim_core.multipass import simulate_passes
 from sim_core.passage import Foundation, InitialState, PassageOutput, PassageSpec, simulate_passage
 from sim_core.rail import RailProfile
-from sim_core.rail_pass import RAIL_MARGIN
+from sim_core.rail_pass import ConstraintTables, DentedRail, rail_pass
 from sim_core.roughness import power_law_psd, random_roughness
 from sim_core.wheel import WheelOutline
 
@@ -269,6 +268,13 @@ def bench_multipass(
     simulate_passes(wheel, rail, spec, passes=2)  # warm-up: flat and dented-rail paths
     best, walls, mp = _best_of(lambda: simulate_passes(wheel, rail, spec, passes=wheels), repeats)
     _log(f"c: railtwin {best:.2f} s for {wheels} wheels")
+    # cost of each wheel along the run: flat as the dents accumulate (base + dent overlay,
+    # round tables spliced where a dent changed the rail)
+    stamps = [time.perf_counter()]
+    simulate_passes(wheel, rail, spec, passes=wheels,
+                    progress=lambda *_: stamps.append(time.perf_counter()))
+    per_wheel = np.diff(stamps)
+    fifth = max(1, wheels // 5)
     sim = wheels * spec.duration
     res: dict[str, Any] = {
         "key": "c",
@@ -280,6 +286,8 @@ def bench_multipass(
         "walls_s": walls,
         "rtf": sim / best,
         "wall_per_wheel_s": best / wheels,
+        "wall_per_wheel_first_fifth_s": float(np.median(per_wheel[1 : fifth + 1])),
+        "wall_per_wheel_last_fifth_s": float(np.median(per_wheel[-fifth:])),
         "rtol": spec.rtol,
         "max_dent_m": [s.max_dent for s in mp.summaries],
         "losses": [s.contact_losses for s in mp.summaries],
@@ -289,13 +297,14 @@ def bench_multipass(
         return res
     x0 = spec.speed * spec.t0
     x1 = x0 + spec.speed * spec.duration
-    current = rail
+    current = DentedRail.of(rail, x0, x1)
+    tables = ConstraintTables()
     ours_int: list[float] = []
     steps = rejected = rhs = 0
     peers: list[scipy_peer.PeerResult] = []
     agree: list[dict[str, Any]] = []
     for _ in range(peer_wheels):
-        table = constraint_for(wheel, current, x0, x1)
+        table = tables.table(wheel, current, x0, x1)
         w, _, out = _best_of(partial(simulate_passage, table, spec), repeats=3)
         ours_int.append(w)
         steps += out.steps
@@ -305,9 +314,7 @@ def bench_multipass(
         _log(f"c: scipy with events {ev.wall:.2f} s for one wheel ({table.x.size} table nodes)")
         peers.append(ev)
         agree.append(agreement(out, ev, by="indentation"))
-        dx, depth = dent_profile(out, spec.contact)
-        if depth.size:
-            current = dented_rail(current, dx, depth, x0 - RAIL_MARGIN, x1 + RAIL_MARGIN)
+        current = rail_pass(wheel, current, spec, tables).rail
     psim = peer_wheels * spec.duration
     our_int = sum(ours_int)
     peer_wall = sum(p.wall for p in peers)

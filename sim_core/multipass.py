@@ -19,7 +19,7 @@ from sim_core.constraint_table import ConstraintTable
 from sim_core.contact_laws import ContactLaw
 from sim_core.passage import PassageOutput, PassageSpec
 from sim_core.rail import RailProfile
-from sim_core.rail_pass import ConstraintTables, DentedRail, rail_pass
+from sim_core.rail_pass import ConstraintTables, DentedRail, TableChoice, rail_pass
 from sim_core.summary import PassageSummary, summarize
 from sim_core.wheel import WheelOutline
 
@@ -48,10 +48,9 @@ def constraint_for(
     curvature_stiffness: bool = False,
 ) -> ConstraintTable:
     """The table a passage over [x_start, x_end] needs: the exact constraint or the profile."""
-    return ConstraintTables().table(
-        wheel, DentedRail.of(rail, x_start, x_end), x_start, x_end, phase=phase,
-        constraint=constraint, curvature_stiffness=curvature_stiffness,
-    )
+    how = TableChoice(phase, constraint, curvature_stiffness)
+    return ConstraintTables().table(wheel, DentedRail.of(rail, x_start, x_end), x_start, x_end,
+                                    how)
 
 
 def simulate_passes(
@@ -74,11 +73,11 @@ def simulate_passes(
     x_start = spec.speed * spec.t0
     current = DentedRail.of(rail, x_start, x_start + spec.speed * spec.duration)
     tables = ConstraintTables()
+    how = TableChoice(phase, constraint, curvature_stiffness)
     summaries: list[PassageSummary] = []
     done = None
     for i in range(passes):
-        done = rail_pass(wheel, current, spec, tables, phase=phase, constraint=constraint,
-                         curvature_stiffness=curvature_stiffness)
+        done = rail_pass(wheel, current, spec, tables, how)
         current = done.rail
         summary = summarize(done.output, done.max_dent)
         summaries.append(summary)

@@ -23,7 +23,7 @@ from sim_core.dents import dent_profile, dented_rail, plastic_records
 from sim_core.multipass import constraint_for, simulate_passes
 from sim_core.passage import InitialState, PassageOutput, PassageSpec, simulate_passage
 from sim_core.rail import RailProfile
-from sim_core.rail_pass import ConstraintTables, DentedRail
+from sim_core.rail_pass import ConstraintTables, DentedRail, TableChoice
 from sim_core.wheel import WheelOutline
 from tests import reference_solver as rs
 
@@ -311,6 +311,30 @@ def test_spliced_tables_equal_a_whole_tabulation() -> None:
         np.testing.assert_allclose(np.sort(spliced.kinks[(spliced.kinks > 0.0)
                                                          & (spliced.kinks < 2.0)]),
                                    whole.kinks[inside], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("wheel", [WheelOutline.ideal_flat(0.46, 0.05),
+                                   WheelOutline.rounded_flat(0.46, 0.08, 0.4e-3)])
+def test_a_flat_wheels_table_on_a_dented_rail_is_the_whole_tabulation(
+    wheel: WheelOutline,
+) -> None:
+    """A flat wheel takes the round wheel's kept table and its own only near the flat
+    (``flat_zones``): the same as its table on the whole dented rail."""
+    base = RailProfile.cosine(2e-6, 0.06)
+    rail = DentedRail.of(base, 0.0, 6.0)
+    for c in (1.0, 2.5, 4.4):  # dents, one under the flat (at x = 1.2 m, 4.09 m)
+        xc = c + np.linspace(-0.01, 0.01, 41)
+        rail = rail.pressed(xc, base.height(xc) - 3e-5, 0.46)
+    phase = (-1.2 / 0.46) % (2 * np.pi)
+    tables = ConstraintTables()
+    ours = tables.table(wheel, rail, 0.0, 6.0, TableChoice(phase))
+    whole = tabulate_constraint(wheel, rail.profile, 0.0, 6.0, phase=phase)
+    xq = np.linspace(0.0, 6.0, 600_001)
+    # the flat's sweep places its nodes from the window's start: its Hermite pieces differ
+    # from the whole table's by up to ~5e-10 m near the flat (both are that close to the
+    # general ψ-search, ``evaluate_exact``), the round wheel's parts to round-off
+    np.testing.assert_allclose(ours.evaluate(xq), whole.evaluate(xq), rtol=0, atol=1e-9)
+    assert ours.evaluate(np.array([1.2]))[0] < -wheel.max_depth / 2  # the flat is there
 
 
 def test_a_restored_rail_is_the_stored_one() -> None:
