@@ -25,7 +25,7 @@ path has slope s against the rail). With it an identical wheel that follows
 the same path over the dented rail meets δ = δ_Y exactly and leaves nothing
 more (elastic shakedown of the geometry); with the point-wise rule it met the
 walls of every dent R·s²/2 too early and each wheel added tens of µm
-(docs/MODEL.md §5, "Repeated passages"). An out-of-round wheel's outline is
+(docs/repeated_passages.md). An out-of-round wheel's outline is
 not a circle about x_C: its records press a circle of the nominal radius
 about the contact point x_D instead (the point-wise rule, with the footprint
 of the nominal circle).
