@@ -23,6 +23,8 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from sim_core.integrate_types import kernel
+
 # c_0..c_3 come from the start; c_4..c_7 = _SEPTIC_INV · (the end conditions' residuals).
 _SEPTIC_INV = np.linalg.inv(
     np.array(
@@ -73,7 +75,7 @@ def _septic_fill(
         )
 
 
-@numba.njit(cache=True)
+@kernel
 def fill_dense(
     coef: NDArray[np.float64],
     h: float,

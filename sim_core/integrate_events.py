@@ -41,6 +41,7 @@ from sim_core.integrate_types import (
     Params,
     Table,
     Work,
+    kernel,
 )
 
 EVENT_TOL = 1e-14
@@ -65,7 +66,7 @@ def event_value(kind: int, d: float, par: Params) -> float:
     return par.d_y - par.hyst - d
 
 
-@numba.njit(cache=True)
+@kernel
 def value_at(
     kind: int,
     s: float,
@@ -86,7 +87,7 @@ def value_at(
     return event_value(kind, d, par), hint
 
 
-@numba.njit(cache=True)
+@kernel
 def find_root(
     kind: int,
     sign: float,
@@ -158,7 +159,7 @@ def locate_event(
     return s, hint
 
 
-@numba.njit(cache=True)
+@kernel
 def first_crossing(
     kind: int,
     t: float,
@@ -185,7 +186,7 @@ def first_crossing(
     return -1.0, hint
 
 
-@numba.njit(cache=True)
+@kernel
 def _flight_crossing(
     t: float,
     h: float,
@@ -258,7 +259,7 @@ def _flight_crossing(
     return -1.0, hint
 
 
-@numba.njit(cache=True)
+@kernel
 def detect_in_flight(
     t: float, h: float, w: Work, par: Params, tab: Table, kinks: NDArray[np.float64], hint: int
 ) -> tuple[float, int, int]:
@@ -280,7 +281,7 @@ def detect_in_flight(
             return -1.0, NO_EVENT, hint
 
 
-@numba.njit(cache=True)
+@kernel
 def detect_in_contact(
     mode: int, t: float, h: float, w: Work, par: Params, tab: Table, hint: int
 ) -> tuple[float, int, int]:

@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from sim_core.constraint_table import linear_at, table_eval
 from sim_core.contact_laws import HERTZ, contact_force, mode_force, mode_stiffness
 from sim_core.integrate_dense import dense
-from sim_core.integrate_types import ELASTIC, FLIGHT, PLASTIC, Params, Table
+from sim_core.integrate_types import ELASTIC, FLIGHT, PLASTIC, Params, Table, kernel
 
 
 @numba.njit(cache=True, inline="always")
@@ -114,7 +114,7 @@ def rhs(
     return ac, am, delta, hint
 
 
-@numba.njit(cache=True)
+@kernel
 def jerks(
     t: float,
     y: NDArray[np.float64],
@@ -156,7 +156,7 @@ def delta_rate(
     return -yc + ck + ym, -vc + par.speed * dck + vm, hint
 
 
-@numba.njit(cache=True)
+@kernel
 def force_rate(
     s: float,
     t: float,

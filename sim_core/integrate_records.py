@@ -59,6 +59,7 @@ from sim_core.integrate_types import (
     X_PEAK_FORCE,
     Params,
     Table,
+    kernel,
 )
 
 
@@ -110,7 +111,7 @@ def _write_row(
     samples[i, S_CONTACT] = 1.0 if mode != FLIGHT else 0.0
 
 
-@numba.njit(cache=True)
+@kernel
 def write_initial_samples(
     samples: NDArray[np.float64],
     sample_t: NDArray[np.float64],
@@ -144,7 +145,7 @@ def write_initial_samples(
     return si
 
 
-@numba.njit(cache=True)
+@kernel
 def write_samples(
     samples: NDArray[np.float64],
     si: int,
@@ -171,7 +172,7 @@ def write_samples(
     return si, hint
 
 
-@numba.njit(cache=True)
+@kernel
 def step_extrema(
     ext: NDArray[np.float64],
     mode: int,

@@ -83,6 +83,7 @@ from sim_core.integrate_types import (
     Result,
     Table,
     Work,
+    kernel,
 )
 
 SAFETY = 0.9
@@ -171,7 +172,7 @@ def _dop853(
     return abs(h) * err5 / math.sqrt(denom * nc), hint
 
 
-@numba.njit(cache=True)
+@kernel
 def rk_step(
     t: float,
     y: NDArray[np.float64],
@@ -193,7 +194,7 @@ def rk_step(
     return _dop853(t, y, h, mode, w, par, tab, hint, 2)
 
 
-@numba.njit(cache=True)
+@kernel
 def _aim_short_of_loss(factor: float, dstage: NDArray[np.float64]) -> float:
     """The shrink factor after an elastic attempt that ran past a loss of contact.
 
@@ -220,7 +221,7 @@ def _aim_short_of_loss(factor: float, dstage: NDArray[np.float64]) -> float:
     return max(factor, min(0.98 * c_cross, 0.9))
 
 
-@numba.njit(cache=True)
+@kernel
 def attempt_step(
     t: float,
     y: NDArray[np.float64],
@@ -252,7 +253,7 @@ def attempt_step(
             return STEP_TOO_SMALL, h, err, n_rej, hint
 
 
-@numba.njit(cache=True)
+@kernel
 def land_on_event(
     kind: int, t: float, y: NDArray[np.float64], par: Params, tab: Table, hint: int
 ) -> tuple[int, int]:
@@ -278,7 +279,7 @@ def land_on_event(
     return mode, hint
 
 
-@numba.njit(cache=True)
+@kernel
 def step_after_event(
     kind: int,
     h: float,
@@ -304,7 +305,7 @@ def step_after_event(
     return max(h, 1e-9), hint
 
 
-@numba.njit(cache=True)
+@kernel
 def _start_derivatives(
     t: float,
     y: NDArray[np.float64],

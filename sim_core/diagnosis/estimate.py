@@ -164,7 +164,8 @@ class _Problem:
     evaluated: dict[tuple[str, float, float], Candidate] = field(default_factory=dict)
     tables: dict[tuple[str, float], ConstraintTable] = field(default_factory=dict)
     templates: dict[tuple[str, float, float], tuple[NDArray[np.float64], NDArray[np.float64]]] = (
-        field(default_factory=dict))
+        field(default_factory=dict)
+    )
     turns: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     period_band: tuple[float, float] = (0.0, 0.0)
 
@@ -205,8 +206,9 @@ class _Problem:
         tau, tf = self.template(flat, zeta)
         half = 0.5 * length / self.speed
         windows = [(self.t[i0:i1], self.f[i0:i1]) for i0, i1 in self.win]
-        centres, total = _align_periodic(tau, tf, windows, self.anchors, self.turns,
-                                         half, self.period_band)
+        centres, total = _align_periodic(
+            tau, tf, windows, self.anchors, self.turns, half, self.period_band
+        )
         cand = Candidate(kind, length, zeta, total, centres)
         self.evaluated[key] = cand
         return cand
@@ -222,8 +224,11 @@ def _clip(f: NDArray[np.float64], load: float) -> NDArray[np.float64]:
 
 
 def _window_costs(
-    tau: NDArray[np.float64], tf: NDArray[np.float64], tw: NDArray[np.float64],
-    fw: NDArray[np.float64], shifts: NDArray[np.float64],
+    tau: NDArray[np.float64],
+    tf: NDArray[np.float64],
+    tw: NDArray[np.float64],
+    fw: NDArray[np.float64],
+    shifts: NDArray[np.float64],
 ) -> NDArray[np.float64]:
     """Sum of squared differences over one window for each flat-centre time in ``shifts``
     (the template ``tf`` is sampled uniformly on ``tau``)."""
@@ -234,8 +239,13 @@ def _window_costs(
 
 @numba.njit(cache=True, nogil=True)
 def _costs_kernel(
-    tau0: float, dtau: float, tf: NDArray[np.float64], tw: NDArray[np.float64],
-    fw: NDArray[np.float64], shifts: NDArray[np.float64], out: NDArray[np.float64],
+    tau0: float,
+    dtau: float,
+    tf: NDArray[np.float64],
+    tw: NDArray[np.float64],
+    fw: NDArray[np.float64],
+    shifts: NDArray[np.float64],
+    out: NDArray[np.float64],
 ) -> None:
     n = tf.size
     for j in range(shifts.size):
@@ -256,9 +266,12 @@ def _costs_kernel(
 
 
 def _align_periodic(
-    tau: NDArray[np.float64], tf: NDArray[np.float64],
+    tau: NDArray[np.float64],
+    tf: NDArray[np.float64],
     windows: list[tuple[NDArray[np.float64], NDArray[np.float64]]],
-    anchors: NDArray[np.float64], turns: NDArray[np.int64], half: float,
+    anchors: NDArray[np.float64],
+    turns: NDArray[np.int64],
+    half: float,
     band: tuple[float, float],
 ) -> tuple[NDArray[np.float64], float]:
     """(flat-centre time per window, total cost) with the centres once per turn.
@@ -271,8 +284,9 @@ def _align_periodic(
     t_lo, t_hi = band
     n = turns.astype(np.float64)
     n_max = max(float(n.max()), 1.0)
-    s0_grid = np.arange(anchors[0] - half - 0.012, anchors[0] + half + 0.002 + 0.5 * SHIFT_STEP,
-                        SHIFT_STEP)
+    s0_grid = np.arange(
+        anchors[0] - half - 0.012, anchors[0] + half + 0.002 + 0.5 * SHIFT_STEP, SHIFT_STEP
+    )
     n_t = max(3, int(np.ceil((t_hi - t_lo) * n_max / SHIFT_STEP)) + 1)
     t_grid = np.linspace(t_lo, t_hi, n_t)
     total = np.zeros((s0_grid.size, t_grid.size))
@@ -300,8 +314,15 @@ NULL_OFFSETS = (0.2, 0.35, 0.5, 0.65, 0.8)
 """Fractions of a turn at which the best flat is also fitted, where there is no flat."""
 
 
-def _contrast(prob: _Problem, best: Candidate, before: float, after: float,
-              significance: float, rate: float, sensor: SensorModel) -> float:
+def _contrast(
+    prob: _Problem,
+    best: Candidate,
+    before: float,
+    after: float,
+    significance: float,
+    rate: float,
+    sensor: SensorModel,
+) -> float:
     """How much better the best flat explains the once-per-turn windows than the same flat
     explains windows a fraction of a turn away (where a real flat has nothing): the
     significance over the largest of those null significances."""
@@ -317,9 +338,13 @@ def _contrast(prob: _Problem, best: Candidate, before: float, after: float,
         ok = (anchors - before >= t[0]) & (anchors + after <= t[-1])
         if not np.any(ok):
             continue
-        win = [(t[int(np.searchsorted(t, a - before)):int(np.searchsorted(t, a + after))],
-                f[int(np.searchsorted(t, a - before)):int(np.searchsorted(t, a + after))])
-               for a in anchors[ok]]
+        win = [
+            (
+                t[int(np.searchsorted(t, a - before)) : int(np.searchsorted(t, a + after))],
+                f[int(np.searchsorted(t, a - before)) : int(np.searchsorted(t, a + after))],
+            )
+            for a in anchors[ok]
+        ]
         turns = prob.turns[ok] - prob.turns[ok][0]
         _, cost = _align_periodic(tau, tf, win, anchors[ok], turns, half, prob.period_band)
         n = sum(w[0].size for w in win)
@@ -344,8 +369,16 @@ def detection_floor(speed: float, options: FitOptions = DEFAULT_OPTIONS) -> floa
     return options.min_length + u * (options.min_length_fast - options.min_length)
 
 
-def _refine(prob: _Problem, kind: FlatKind, ln: float, z: float, zetas: tuple[float, ...],
-            grid: tuple[float, ...], options: FitOptions, rounds: int) -> Candidate:
+def _refine(
+    prob: _Problem,
+    kind: FlatKind,
+    ln: float,
+    z: float,
+    zetas: tuple[float, ...],
+    grid: tuple[float, ...],
+    options: FitOptions,
+    rounds: int,
+) -> Candidate:
     """Alternate golden sections on the damping ratio and the length of one kind.
 
     The first round brackets by the coarse grids' neighbours, later rounds by ±0.06 in
@@ -358,31 +391,42 @@ def _refine(prob: _Problem, kind: FlatKind, ln: float, z: float, zetas: tuple[fl
                 zlo, zhi = zetas[max(iz - 1, 0)], zetas[min(iz + 1, len(zetas) - 1)]
             else:
                 zlo, zhi = max(0.0, z - 0.06), min(zetas[-1], z + 0.06)
-            _golden(lambda zz, ln=ln: prob.evaluate(kind, ln, zz).cost, zlo, zhi,
-                    options.refine_evaluations - 2)
+            _golden(
+                lambda zz, ln=ln: prob.evaluate(kind, ln, zz).cost,
+                zlo,
+                zhi,
+                options.refine_evaluations - 2,
+            )
             z = _best(prob, kind, length=ln).zeta
         if rnd == 0:
             i = int(np.argmin([prob.evaluate(kind, g, z).cost for g in grid]))
             llo, lhi = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
         else:
             llo, lhi = 0.9 * ln, min(1.1 * ln, grid[-1])
-        _golden(lambda ll, z=z: prob.evaluate(kind, ll, z).cost, llo, lhi,
-                options.refine_evaluations)
+        _golden(
+            lambda ll, z=z: prob.evaluate(kind, ll, z).cost, llo, lhi, options.refine_evaluations
+        )
         ln = _best(prob, kind, zeta=z).length
     return _best(prob, kind, zeta=z)
 
 
-def _best(prob: _Problem, kind: str, *, length: float | None = None,
-          zeta: float | None = None) -> Candidate:
+def _best(
+    prob: _Problem, kind: str, *, length: float | None = None, zeta: float | None = None
+) -> Candidate:
     """The cheapest evaluated candidate of ``kind`` (at ``length`` or at ``zeta`` if given)."""
-    return min((c for c in prob.evaluated.values() if c.kind == kind
-                and (length is None or c.length == length) and (zeta is None or c.zeta == zeta)),
-               key=lambda c: c.cost)
+    return min(
+        (
+            c
+            for c in prob.evaluated.values()
+            if c.kind == kind
+            and (length is None or c.length == length)
+            and (zeta is None or c.zeta == zeta)
+        ),
+        key=lambda c: c.cost,
+    )
 
 
-def _golden(
-    fn: object, lo: float, hi: float, n: int
-) -> None:
+def _golden(fn: object, lo: float, hi: float, n: int) -> None:
     """Golden-section search of a unimodal fn on [lo, hi] with n evaluations (results cached)."""
     g = (math.sqrt(5.0) - 1.0) / 2.0
     a, b = lo, hi
@@ -446,8 +490,9 @@ def estimate_flat(
     if anchors.times.size >= 2:
         v = min(max(TWO_PI * R / anchors.period, 0.97 * speed), 1.03 * speed)
     before = WINDOW_BEFORE / v + 2e-3
-    after = WINDOW_AFTER + (2.0 * sensor.order / (TWO_PI * sensor.cutoff_hz)
-                            if sensor.cutoff_hz else 0.0)
+    after = WINDOW_AFTER + (
+        2.0 * sensor.order / (TWO_PI * sensor.cutoff_hz) if sensor.cutoff_hz else 0.0
+    )
     win: list[tuple[int, int]] = []
     kept: list[float] = []
     for a in anchors.times:
@@ -465,15 +510,43 @@ def estimate_flat(
     cost_round = float(sum(np.sum((f[i0:i1] - P) ** 2) for i0, i1 in win))
     windows = tuple((float(t[i0]), float(t[i1 - 1])) for i0, i1 in win)
     if not win:
-        return FlatEstimate(None, None, 0.0, 0.0, 0.0, cost_round, cost_round, 0, 0.0, 0.0, v,
-                            0.0, windows, (), time.perf_counter() - start)
+        return FlatEstimate(
+            None,
+            None,
+            0.0,
+            0.0,
+            0.0,
+            cost_round,
+            cost_round,
+            0,
+            0.0,
+            0.0,
+            v,
+            0.0,
+            windows,
+            (),
+            time.perf_counter() - start,
+        )
     kept_a = np.array(kept)
     t_speed = TWO_PI * R / speed
     turns = np.rint((kept_a - kept_a[0]) / t_speed).astype(np.int64)
-    band = (t_speed / (1.0 + options.speed_uncertainty_fit),
-            t_speed / (1.0 - options.speed_uncertainty_fit))
-    prob = _Problem(wheel, v, sensor, sensor.fine_rate(rate), t, f, win, kept_a,
-                    RailTables(RailProfile.flat()), turns=turns, period_band=band)
+    band = (
+        t_speed / (1.0 + options.speed_uncertainty_fit),
+        t_speed / (1.0 - options.speed_uncertainty_fit),
+    )
+    prob = _Problem(
+        wheel,
+        v,
+        sensor,
+        sensor.fine_rate(rate),
+        t,
+        f,
+        win,
+        kept_a,
+        RailTables(RailProfile.flat()),
+        turns=turns,
+        period_band=band,
+    )
     grid = tuple(sorted(options.lengths))
     f_site = wheel.foundation
     zetas: tuple[float, ...] = (0.0,)
@@ -491,8 +564,9 @@ def estimate_flat(
     best_of_kind: dict[FlatKind, Candidate] = {}
     for kind in options.kinds:
         cur = min((c for c in prob.evaluated.values() if c.kind == kind), key=lambda c: c.cost)
-        best_of_kind[kind] = _refine(prob, kind, cur.length, cur.zeta, zetas, grid, options,
-                                     options.refine_rounds)
+        best_of_kind[kind] = _refine(
+            prob, kind, cur.length, cur.zeta, zetas, grid, options, options.refine_rounds
+        )
     best = min(best_of_kind.values(), key=lambda c: c.cost)
     at_zeta = [c for c in prob.evaluated.values() if c.zeta == best.zeta]
     n_eff = n * (min(1.0, 2.0 * sensor.cutoff_hz / rate) if sensor.cutoff_hz else 1.0)
@@ -514,8 +588,11 @@ def estimate_flat(
                     break
                 if prob.evaluate(cand.kind, ln, cand.zeta).cost > j_max:
                     break
-        points = [(c.length, c.cost) for c in prob.evaluated.values()
-                  if c.zeta == cand.zeta and c.kind == cand.kind]
+        points = [
+            (c.length, c.cost)
+            for c in prob.evaluated.values()
+            if c.zeta == cand.zeta and c.kind == cand.kind
+        ]
         k_lo, k_hi = _interval(points, j_max, cand.length)
         lo, hi = min(lo, k_lo), max(hi, k_hi)
     at_zeta = [c for c in prob.evaluated.values() if c.zeta == best.zeta]
@@ -533,10 +610,28 @@ def estimate_flat(
     if found:
         phases = np.exp(1j * (-(v * best.centres) / R))
         phase = float(np.angle(np.mean(phases))) % TWO_PI
-        flat = (Flat.ideal(R, best.length, phase) if best.kind == "flat"
-                else Flat.rounded(R, best.length, None, phase))
-    profile = tuple((c.kind, c.length, c.cost) for c in
-                    sorted(at_zeta, key=lambda c: (c.kind, c.length)))
-    return FlatEstimate(flat, best.kind, best.length, lo, hi, cost_round, best.cost, n,
-                        float(significance), float(contrast), v, best.zeta, windows, profile,
-                        time.perf_counter() - start)
+        flat = (
+            Flat.ideal(R, best.length, phase)
+            if best.kind == "flat"
+            else Flat.rounded(R, best.length, None, phase)
+        )
+    profile = tuple(
+        (c.kind, c.length, c.cost) for c in sorted(at_zeta, key=lambda c: (c.kind, c.length))
+    )
+    return FlatEstimate(
+        flat,
+        best.kind,
+        best.length,
+        lo,
+        hi,
+        cost_round,
+        best.cost,
+        n,
+        float(significance),
+        float(contrast),
+        v,
+        best.zeta,
+        windows,
+        profile,
+        time.perf_counter() - start,
+    )

@@ -172,11 +172,14 @@ def with_damping_ratio(wheel: WheelOnSite, zeta: float) -> WheelOnSite:
     f = wheel.foundation
     if not f.is_compliant:
         return wheel
-    return replace(wheel, foundation=Foundation.compliant(f.mass, f.stiffness,
-                                                          damping_for_ratio(f, zeta)))
+    return replace(
+        wheel, foundation=Foundation.compliant(f.mass, f.stiffness, damping_for_ratio(f, zeta))
+    )
 
 
-def flat_times(radius: float, speed: float, phase: float, t0: float, t1: float) -> NDArray[np.float64]:
+def flat_times(
+    radius: float, speed: float, phase: float, t0: float, t1: float
+) -> NDArray[np.float64]:
     """Times t_k in [t0, t1] at which the flat's centre is under the wheel centre."""
     period = TWO_PI * radius / speed
     first = radius * (-(phase % TWO_PI)) / speed  # k = 0
@@ -237,9 +240,16 @@ def simulate_window(
 ) -> PassageOutput:
     """The wheel from static equilibrium at t0 (rolling steadily there) to t1."""
     spec = PassageSpec(
-        mass=wheel.mass, load=wheel.load, speed=speed, duration=t1 - t0,
-        sample_rate=sample_rate, contact=wheel.contact, foundation=wheel.foundation,
-        initial=None, rtol=wheel.rtol, t0=t0,
+        mass=wheel.mass,
+        load=wheel.load,
+        speed=speed,
+        duration=t1 - t0,
+        sample_rate=sample_rate,
+        contact=wheel.contact,
+        foundation=wheel.foundation,
+        initial=None,
+        rtol=wheel.rtol,
+        t0=t0,
     )
     return simulate_passage(table, spec, track_dents=False)
 

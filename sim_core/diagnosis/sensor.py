@@ -87,7 +87,9 @@ class SensorModel:
 _SOS_CACHE: dict[tuple[int, float, float], tuple[NDArray[np.float64], NDArray[np.float64]]] = {}
 
 
-def _butter(order: int, cutoff: float, rate: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def _butter(
+    order: int, cutoff: float, rate: float
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """(second-order sections, their steady-state initial conditions for a unit input)."""
     key = (order, cutoff, round(rate, 6))
     got = _SOS_CACHE.get(key)

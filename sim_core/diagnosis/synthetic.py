@@ -112,16 +112,18 @@ def synthetic_measurement(
         f = wheel.foundation
         if not f.is_compliant:
             raise ValueError("synthetic: foundation damping needs a compliant foundation")
-        true_wheel = replace(wheel, foundation=Foundation.compliant(f.mass, f.stiffness,
-                                                                     p.foundation_damping))
+        true_wheel = replace(
+            wheel, foundation=Foundation.compliant(f.mass, f.stiffness, p.foundation_damping)
+        )
     x0 = -run_in_length(wheel.radius) - 2 * TABLE_MARGIN - 1.0
     x1 = site_length * true_speed / speed + 2 * TABLE_MARGIN + 1.0
     rails = RailTables(rough_rail(rail, x0, x1, p.roughness_rms, p.seed))
     fine = sensor.fine_rate(sample_rate)
     duration = site_length / speed
     n = math.floor(duration * sample_rate + 1e-9) + 1
-    out = simulate_passage_run_in(true_wheel, true_speed, flat, rails, 0.0,
-                                  true_speed * (duration + 2.0 / sample_rate), fine)
+    out = simulate_passage_run_in(
+        true_wheel, true_speed, flat, rails, 0.0, true_speed * (duration + 2.0 / sample_rate), fine
+    )
     t_meas = np.arange(n) / sample_rate
     measured = sensor.measure(out.t, out.force, t_meas)
     rng = np.random.default_rng(p.seed + 7919)

@@ -56,13 +56,16 @@ def verdict(
     for what, value in forces:
         lv, name, limit = _level(value, L.watch_force, L.inspect_force, L.remove_force)
         if lv:
-            reasons.append(f"{what} {value / 1e3:.0f} kN >= {name} limit {limit / 1e3:.0f} kN "
-                           f"({name}_force)")
+            reasons.append(
+                f"{what} {value / 1e3:.0f} kN >= {name} limit {limit / 1e3:.0f} kN ({name}_force)"
+            )
             worst = max(worst, lv)
     if flat_length is not None:
         lv, name, limit = _level(flat_length, L.watch_length, L.inspect_length, L.remove_length)
         if lv:
-            reasons.append(f"flat length {flat_length * 1e3:.1f} mm >= {name} limit "
-                           f"{limit * 1e3:.1f} mm ({name}_length)")
+            reasons.append(
+                f"flat length {flat_length * 1e3:.1f} mm >= {name} limit "
+                f"{limit * 1e3:.1f} mm ({name}_length)"
+            )
             worst = max(worst, lv)
     return LEVELS[worst], reasons
