@@ -184,10 +184,11 @@ def step_extrema(
     par: Params,
     tab: Table,
     hint: int,
-) -> tuple[float, float, int]:
+) -> tuple[float, float, float, int]:
     """Fold the extrema of δ and F over the contact step [t, t + h] into ``ext``.
 
-    Returns (δ, dδ/dt, hint) at the step's end (left-hand slope: the end may be a kink).
+    Returns (δ, dδ/dt, the step's mean d²δ/dt², hint) at the step's end (left-hand
+    slope: the end may be a kink): what ``integrator.step_toward_loss`` predicts from.
     """
     v = par.speed
     # δ and dδ/dt at the step's ends come from the states themselves
@@ -224,7 +225,7 @@ def step_extrema(
             sm, hint = extremum_in(F_FORCE_RATE, q_a, q_b, t, h, coef, par, tab, 0.0, hint)
             f_m, _, hint = force_rate(sm, t, h, coef, par, tab, False, hint)
             _fold_force(ext, f_m)
-    return d_b, r_b, hint
+    return d_b, r_b, (r_b - r_a) / h, hint
 
 
 @numba.njit(cache=True, inline="always")
