@@ -142,7 +142,7 @@ def wrap(xv: float, x0: float, period: float) -> tuple[float, float]:
     """(position inside the table, shift added) for a periodic table."""
     if period <= 0.0:
         return xv, 0.0
-    n = np.floor((xv - x0) / period)
+    n = np.floor((xv - x0) * (1.0 / period))  # a division the look-up loops hoist
     shift = n * period
     return xv - shift, shift
 

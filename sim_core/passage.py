@@ -33,6 +33,7 @@ from numpy.typing import NDArray
 
 from sim_core.constraint_table import ConstraintTable
 from sim_core.contact_laws import ContactLaw, ContactModel
+from sim_core.integrate_model import curvature_bound
 from sim_core.integrate_types import (
     MODE_NAMES,
     S_CONTACT,
@@ -224,17 +225,6 @@ def static_indentation(contact: ContactModel, load: float, scale: float = 1.0) -
     return 0.5 * (lo + hi)
 
 
-def _second_derivative_bound(table: ConstraintTable) -> float:
-    """max |y_C^k''| of the Hermite table (attained at piece ends, as it is linear per piece)."""
-    h = np.diff(table.x)
-    dy = np.diff(table.y)
-    m0 = table.slope_right[:-1]
-    m1 = table.slope_left[1:]
-    c0 = 6.0 * dy / h**2 - (4.0 * m0 + 2.0 * m1) / h
-    c1 = -6.0 * dy / h**2 + (2.0 * m0 + 4.0 * m1) / h
-    return float(max(np.max(np.abs(c0)), np.max(np.abs(c1))))
-
-
 class IntegrationError(RuntimeError):
     """The integrator could not finish the passage (step too small, too many steps)."""
 
@@ -286,6 +276,7 @@ def simulate_passage(
     )
     if not compliant and (init.y_m != 0.0 or init.v_m != 0.0):
         raise ValueError("initial y_m/v_m given for a rigid foundation")
+    tab = table_of(table)
     par = Params.build(
         law=int(law),
         c=spec.contact.coefficient,
@@ -304,7 +295,7 @@ def simulate_passage(
         atol_y=spec.rtol * d0,
         atol_v=spec.rtol * d0 * omega0,
         hmax_contact=RESOLUTION_STEP * table.resolution / v,
-        c2max=_second_derivative_bound(table),
+        c2max=curvature_bound(tab),
         track_dents=track_dents,
         dent_dx=dent_spacing,
     )
@@ -314,7 +305,7 @@ def simulate_passage(
     sample_t = np.minimum(t0 + np.arange(n_samples) / spec.sample_rate, t1)
     kinks = table.kinks_between(v * t0 - 1e-12, v * t1 + table.resolution)
     res = integrate(
-        table_of(table),
+        tab,
         np.ascontiguousarray(kinks, dtype=np.float64),
         par,
         float(t0),
@@ -335,8 +326,7 @@ def simulate_passage(
     t_flight = float(ext[X_T_FLIGHT])
     peak_force, least_force = float(ext[X_PEAK_FORCE]), float(ext[X_MIN_FORCE])
     transitions = tuple(
-        Transition(float(tt), TRANSITION_KINDS[int(kk)], float(tt * v))
-        for tt, kk in res.transitions
+        Transition(tt, TRANSITION_KINDS[int(kk)], tt * v) for tt, kk in res.transitions.tolist()
     )
     ever_lost = any(tr.kind == "loss" for tr in transitions) or t_flight > 0.0
     min_force = 0.0 if ever_lost else least_force
