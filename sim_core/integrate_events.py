@@ -281,7 +281,7 @@ def detect_in_flight(
             return -1.0, NO_EVENT, hint
 
 
-@kernel
+@numba.njit(cache=True, inline="always")
 def detect_in_contact(
     mode: int, t: float, h: float, w: Work, par: Params, tab: Table, hint: int
 ) -> tuple[float, int, int]:

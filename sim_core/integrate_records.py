@@ -145,7 +145,7 @@ def write_initial_samples(
     return si
 
 
-@kernel
+@numba.njit(cache=True, inline="always")
 def write_samples(
     samples: NDArray[np.float64],
     si: int,
@@ -172,7 +172,7 @@ def write_samples(
     return si, hint
 
 
-@kernel
+@numba.njit(cache=True, inline="always")
 def step_extrema(
     ext: NDArray[np.float64],
     mode: int,

@@ -233,7 +233,7 @@ def _aim_short_of_loss(factor: float, dstage: NDArray[np.float64]) -> float:
     return max(factor, min(0.98 * c_cross, 0.9))
 
 
-@kernel
+@numba.njit(cache=True, inline="always")
 def attempt_step(
     t: float,
     y: NDArray[np.float64],
