@@ -39,7 +39,7 @@ from numpy.typing import NDArray
 
 from sim_core.constraint_table import ConstraintTable
 
-kernel = numba.njit(cache=True, _nrt=False)
+kernel = numba.njit(cache=True, _nrt=False)  # type: ignore[call-overload]  # _nrt: not in the stubs
 """The decorator of the integrator's compiled functions that allocate nothing.
 
 Without the runtime's reference counting (``_nrt=False``): a compiled function
