@@ -64,8 +64,13 @@ from sim_core.wheel import WheelOutline
 RTOL = 1e-9
 """railtwin's accuracy setting in every case (``PassageSpec.rtol``, its default); SciPy gets the same."""
 
-LOOSE_RTOL = 1e-8
-"""A second setting for (a) and (b): still within the issue's accuracy targets."""
+LOOSE_RTOL = {"a": 1e-7, "b": 1e-8}
+"""A second setting per case; whether it holds the issue's accuracy (1e-4 in force, 1e-7 s
+in transition times) is the ``agreement_tight`` row: against railtwin at ``REFERENCE_RTOL``.
+Measured: (a) holds it to rtol 1e-7 (5.7e-5, 8e-8 s), (b) only to 1e-9 (6e-4 at 1e-8)."""
+
+REFERENCE_RTOL = 1e-12
+"""The tight solution the accuracy of each setting is measured against."""
 
 RESONANCE_FREQUENCY = 280.0
 RESONANCE_PERIODS = 300
@@ -240,6 +245,7 @@ def bench_passage(
         **_passage_stats(out, sim, best),
     }
     _log(f"{key}: railtwin {best * 1e3:.2f} ms for {sim:.4g} s simulated")
+    res["agreement_tight"] = tight_agreement(key, table, spec, out)
     if peer:
         ev = scipy_peer.solve_events(table, spec)
         res["scipy_events"] = _peer_entry(ev, sim, best)
@@ -253,6 +259,31 @@ def bench_passage(
         pl = scipy_peer.solve_plain(table, spec)
         res["scipy_plain"] = _peer_entry(pl, sim, best)
         res["scipy_plain"]["peak_rel_diff"] = abs(out.peak_force - pl.peak_force) / out.peak_force
+    return res
+
+
+def tight_agreement(
+    key: str, table: ConstraintTable, spec: PassageSpec, out: PassageOutput
+) -> dict[str, Any]:
+    """``out`` against railtwin at ``REFERENCE_RTOL``; (a) on its first ``AGREEMENT_PERIODS``
+    (over 300 periods it is chaotic: rtol 1e-9 and 1e-12 differ by 12 % in peak force)."""
+    if key.startswith("a") and spec.duration > AGREEMENT_PERIODS / RESONANCE_FREQUENCY * 1.001:
+        spec = replace(spec, duration=AGREEMENT_PERIODS / RESONANCE_FREQUENCY)
+        out = simulate_passage(table, spec)
+    ref = simulate_passage(table, replace(spec, rtol=REFERENCE_RTOL))
+    as_peer = scipy_peer.PeerResult(
+        wall=0.0,
+        transitions=[(tr.t, tr.kind) for tr in ref.transitions],
+        peak_delta=ref.max_indentation,
+        peak_force=ref.peak_force,
+        nfev=ref.rhs_evaluations,
+        segments=0,
+        steps=ref.steps,
+    )
+    res = agreement(out, as_peer)
+    res["window"] = f"rtol {spec.rtol:g} vs railtwin at rtol {REFERENCE_RTOL:g}" + (
+        f", first {AGREEMENT_PERIODS} periods" if key.startswith("a") else ""
+    )
     return res
 
 
@@ -457,12 +488,20 @@ def run(quick: bool = False, repeats: int = REPEATS, peer: bool = True) -> dict[
     if not quick:
         # The same two cases at a looser tolerance that still meets the issue's accuracy
         # (peak force 1e-4, transition times 1e-7 s against SciPy: see the agreement rows).
-        for key, (tab, sp), title in (
-            ("a8", resonance_case(periods), f"(a) at rtol {LOOSE_RTOL:g}"),
-            ("b8", flat_compliant_case(turns), f"(b) at rtol {LOOSE_RTOL:g}"),
+        for key, (tab, sp) in (
+            ("a", resonance_case(periods)),
+            ("b", flat_compliant_case(turns)),
         ):
+            rtol = LOOSE_RTOL[key]
             out["cases"].append(
-                bench_passage(key, title, tab, replace(sp, rtol=LOOSE_RTOL), repeats, peer)
+                bench_passage(
+                    f"{key}{-math.log10(rtol):.0f}",
+                    f"({key}) at rtol {rtol:g}",
+                    tab,
+                    replace(sp, rtol=rtol),
+                    repeats,
+                    peer,
+                )
             )
     if quick:
         out["cases"].append(
@@ -527,7 +566,8 @@ def markdown(res: dict[str, Any]) -> str:
         )
     lines += [
         "",
-        "Agreement with SciPy DOP853 + events (transitions paired in order):",
+        "Agreement with SciPy DOP853 + events, and with railtwin at a tight tolerance "
+        "(transitions paired in order):",
         "",
         "| case | peak rel. diff | transitions ours / SciPy | same sequence | largest |Δt| "
         "| no-events call: peak rel. diff |",
@@ -541,6 +581,10 @@ def markdown(res: dict[str, Any]) -> str:
             rows[0] = (c["key"] + " (whole window, chaotic)", c.get("agreement"), plain)
             rows.append(
                 (f"{c['key']} ({c['agreement_short']['window']})", c["agreement_short"], "–")
+            )
+        if c.get("agreement_tight"):
+            rows.append(
+                (f"{c['key']} ({c['agreement_tight']['window']})", c["agreement_tight"], "–")
             )
         for label, ag, pcol in rows:
             if not ag:
