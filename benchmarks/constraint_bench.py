@@ -22,7 +22,7 @@ from functools import partial
 import numpy as np
 
 from sim_core.constraint import tabulate_constraint
-from sim_core.constraint_table import ConstraintTable
+from sim_core.constraint.table import ConstraintTable
 from sim_core.rail import RailProfile
 from sim_core.roughness import power_law_psd, random_roughness
 from sim_core.wheel import WheelOutline

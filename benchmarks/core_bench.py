@@ -52,7 +52,7 @@ from numpy.typing import NDArray
 from benchmarks import scipy_peer
 from sim_core import paper
 from sim_core.constraint import tabulate_constraint
-from sim_core.constraint_table import ConstraintTable
+from sim_core.constraint.table import ConstraintTable
 from sim_core.contact_laws import ContactLaw
 from sim_core.multipass import simulate_passes
 from sim_core.passage import Foundation, InitialState, PassageOutput, PassageSpec, simulate_passage

@@ -16,7 +16,7 @@ integrators, not the geometry):
 
 The constraint is read from the table's nodes with a scalar Python Hermite
 look-up (values, left/right slopes, periodic wrap): the same piecewise cubic
-``sim_core.constraint_table`` evaluates, written independently here.
+``sim_core.constraint.table`` evaluates, written independently here.
 
 Tolerances are matched to railtwin's (``PassageSpec.rtol``; absolute
 tolerances rtol·δ0 on positions and rtol·δ0·ω0 on velocities). ``max_step`` is
@@ -39,7 +39,7 @@ from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 from scipy.optimize import minimize_scalar
 
-from sim_core.constraint_table import ConstraintTable
+from sim_core.constraint.table import ConstraintTable
 from sim_core.contact_laws import ContactLaw
 from sim_core.passage import PassageSpec, static_indentation
 

@@ -26,7 +26,7 @@ from schemas.scenario import FlatOutline
 from schemas.site import SiteConfig
 from service import physics_inputs
 from sim_core.constraint import warm_up_constraint
-from sim_core.constraint_table import ConstraintTable
+from sim_core.constraint.table import ConstraintTable
 from sim_core.contact_laws import ContactLaw, ContactModel
 from sim_core.passage import PassageOutput, PassageSpec, simulate_passage
 from sim_core.rail import RailProfile

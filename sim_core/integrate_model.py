@@ -19,7 +19,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from sim_core.constraint_table import linear_at, table_eval
+from sim_core.constraint.table import linear_at, table_eval
 from sim_core.contact_laws import HERTZ, contact_force, mode_force, mode_stiffness
 from sim_core.integrate_dense import dense
 from sim_core.integrate_types import ELASTIC, FLIGHT, PLASTIC, Params, Table, kernel

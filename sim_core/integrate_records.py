@@ -26,7 +26,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from sim_core.constraint_table import linear_at
+from sim_core.constraint.table import linear_at
 from sim_core.integrate_dense import dense
 from sim_core.integrate_events import extremum_in
 from sim_core.integrate_model import (

@@ -37,7 +37,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from sim_core.constraint_table import ConstraintTable
+from sim_core.constraint.table import ConstraintTable
 
 kernel = numba.njit(cache=True, _nrt=False)  # type: ignore[call-overload]  # _nrt: not in the stubs
 """The decorator of the integrator's compiled functions that allocate nothing.

@@ -15,7 +15,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from sim_core.constraint_table import ConstraintTable
+from sim_core.constraint.table import ConstraintTable
 from sim_core.contact_laws import ContactLaw
 from sim_core.passage import PassageOutput, PassageSpec
 from sim_core.rail import RailProfile

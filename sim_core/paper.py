@@ -53,7 +53,7 @@ from sim_core.constraint import (
     profile_constraint,
     tabulate_constraint,
 )
-from sim_core.constraint_table import ConstraintTable
+from sim_core.constraint.table import ConstraintTable
 from sim_core.contact_laws import (
     HERTZ_PLASTIC,
     ContactLaw,

@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from sim_core.constraint_table import ConstraintTable
+from sim_core.constraint.table import ConstraintTable
 from sim_core.contact_laws import ContactLaw, ContactModel
 from sim_core.integrate_model import curvature_bound
 from sim_core.integrate_types import (

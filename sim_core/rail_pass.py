@@ -32,7 +32,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sim_core.constraint import curvature_stiffness_scale, profile_constraint, tabulate_constraint
-from sim_core.constraint_table import ConstraintTable
+from sim_core.constraint.table import ConstraintTable
 from sim_core.contact_laws import ContactLaw
 from sim_core.dent_overlay import DentOverlay, dented_profile
 from sim_core.dents import plastic_records

@@ -15,7 +15,7 @@ import pytest
 pytest.importorskip("scipy")
 
 from benchmarks import core_bench
-from sim_core.constraint_table import ConstraintTable
+from sim_core.constraint.table import ConstraintTable
 from sim_core.passage import PassageSpec
 
 

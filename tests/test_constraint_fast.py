@@ -1,4 +1,4 @@
-"""The piece sweep (sim_core.constraint_wheel_pieces) against the general ψ-search and brute force."""
+"""The piece sweep (sim_core.constraint.wheel_pieces) against the general ψ-search and brute force."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import pytest
 from numpy.typing import NDArray
 
 from sim_core.constraint import evaluate_exact, tabulate_constraint
-from sim_core.constraint_table import ConstraintTable
-from sim_core.constraint_wheel_pieces import supports
+from sim_core.constraint.table import ConstraintTable
+from sim_core.constraint.wheel_pieces import supports
 from sim_core.rail import RailProfile
 from sim_core.wheel import WheelOutline
 from sim_core.wheel_roughness import bundled_measurement, load_wheel_roughness
@@ -106,7 +106,7 @@ def test_rounded_flat_concave_flat_rail() -> None:
 
 def test_sampled_rail_takes_the_polyline_sweep() -> None:
     # the piece sweep covers flat and cosine rails; a sampled rail takes the polyline sweep
-    # (sim_core.constraint_polyline, tested in test_constraint_polyline.py), not the ψ-search
+    # (sim_core.constraint.polyline, tested in test_constraint_polyline.py), not the ψ-search
     rng = np.random.default_rng(5)
     x = np.arange(0.0, 0.3, 1e-3)
     y = np.cumsum(rng.normal(0.0, 2e-6, x.size))

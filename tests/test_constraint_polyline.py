@@ -1,4 +1,4 @@
-"""The polyline sweep (sim_core.constraint_polyline) against the general ψ-search.
+"""The polyline sweep (sim_core.constraint.polyline) against the general ψ-search.
 
 Every out-of-round wheel kind (ideal flat, rounded flat, sampled outline) on every
 polyline rail kind (random roughness, a measured file, a dented rail), on short windows
@@ -22,8 +22,8 @@ from sim_core.constraint import (
     tabulate_constraint,
     warm_up_constraint,
 )
-from sim_core.constraint_polyline import rail_polyline, supports_polyline
-from sim_core.constraint_table import ConstraintTable
+from sim_core.constraint.polyline import rail_polyline, supports_polyline
+from sim_core.constraint.table import ConstraintTable
 from sim_core.dents import dented_rail
 from sim_core.rail import RailProfile
 from sim_core.roughness import power_law_psd, random_roughness

@@ -10,12 +10,12 @@ import pytest
 
 import sim_core
 
-MODULES = sorted(m.name for m in pkgutil.iter_modules(sim_core.__path__, prefix="sim_core."))
+MODULES = sorted(m.name for m in pkgutil.walk_packages(sim_core.__path__, prefix="sim_core."))
 MODULES += ["service.physics_inputs"]
 
 
 def test_every_module_is_listed() -> None:
-    for name in ("materials", "contact_laws", "constraint", "passage", "integrator", "dents"):
+    for name in ("materials", "contact_laws", "constraint", "constraint.table", "passage", "integrator", "dents"):
         assert f"sim_core.{name}" in MODULES
 
 

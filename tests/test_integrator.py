@@ -27,7 +27,7 @@ from sim_core.constraint import (
     profile_constraint,
     tabulate_constraint,
 )
-from sim_core.constraint_table import ConstraintTable
+from sim_core.constraint.table import ConstraintTable
 from sim_core.contact_laws import ContactLaw, ContactModel
 from sim_core.passage import Foundation, InitialState, PassageOutput, PassageSpec, simulate_passage
 from sim_core.rail import RailProfile

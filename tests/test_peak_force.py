@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import functools
 
-from sim_core.constraint_table import ConstraintTable
+from sim_core.constraint.table import ConstraintTable
 from sim_core.contact_laws import ContactLaw, ContactModel
 from sim_core.materials import Material, derive
 from sim_core.multipass import constraint_for

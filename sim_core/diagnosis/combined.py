@@ -36,7 +36,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from sim_core.constraint_table import ConstraintTable
+from sim_core.constraint.table import ConstraintTable
 
 __all__ = ["add_tables"]
 

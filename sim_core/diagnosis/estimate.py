@@ -43,7 +43,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from sim_core.constraint_table import ConstraintTable
+from sim_core.constraint.table import ConstraintTable
 from sim_core.diagnosis.forward import (
     Flat,
     FlatKind,

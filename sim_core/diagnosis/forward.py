@@ -40,7 +40,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sim_core.constraint import tabulate_constraint
-from sim_core.constraint_table import ConstraintTable
+from sim_core.constraint.table import ConstraintTable
 from sim_core.contact_laws import ContactModel
 from sim_core.diagnosis.combined import add_tables
 from sim_core.passage import Foundation, PassageOutput, PassageSpec, simulate_passage

@@ -6,7 +6,7 @@ For a wheel outline r(θ) turned by φ = φ0 + x_C/R on a rail y_r(x):
 
 (the height of the wheel centre relative to a round wheel on a flat rail).
 The maximiser gives the contact point x_D = x_C + ρ·sin ψ. The result is a
-:class:`~sim_core.constraint_table.ConstraintTable`: exact values and slopes on
+:class:`~sim_core.constraint.table.ConstraintTable`: exact values and slopes on
 nodes, cubic Hermite in between, and explicit kinks where the contact point
 jumps (the wheel bridges a hollow, rolls on to a flat's corner, a concave rail
 vertex, a step's corner).
@@ -22,12 +22,12 @@ How it is solved (all compiled with numba):
   segment) in closed form, crossings of non-adjacent pieces (kinks) by
   bisection to the last bit. So the table is exact piecewise (arcs and lines).
 - *An out-of-round wheel on a flat or cosine rail*: the piece sweep of
-  :mod:`sim_core.constraint_wheel_pieces` (the outline cut into pieces with one
+  :mod:`sim_core.constraint.wheel_pieces` (the outline cut into pieces with one
   smooth formula each, closed forms and Newton per piece, the changes of piece
   located as roots of closed forms). ``method="general"`` forces the ψ-search
   below instead (for cross-checks).
 - *An out-of-round wheel on a sampled (measured, file, dented) rail*: the cell sweep of
-  :mod:`sim_core.constraint_polyline` (each wheel piece against each rail segment and
+  :mod:`sim_core.constraint.polyline` (each wheel piece against each rail segment and
   vertex: closed forms, or Newton on a unimodal piece; changes of contact located between
   nodes) inside the stretches where the out-of-roundness can reach the contact, and the
   round wheel's closed form below elsewhere, cut from a table of the whole rail that is
@@ -77,7 +77,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from sim_core.constraint_polyline import (
+from sim_core.constraint.polyline import (
     RailPolyline,
     flat_zones,
     polyline_pieces,
@@ -85,15 +85,15 @@ from sim_core.constraint_polyline import (
     supports_polyline,
     sweep_kernel,
 )
-from sim_core.constraint_table import ConstraintTable
-from sim_core.constraint_wheel_pieces import N_K as PN_K
-from sim_core.constraint_wheel_pieces import N_SL as PN_SL
-from sim_core.constraint_wheel_pieces import N_SR as PN_SR
-from sim_core.constraint_wheel_pieces import N_V as PN_V
-from sim_core.constraint_wheel_pieces import N_X as PN_X
-from sim_core.constraint_wheel_pieces import N_XD as PN_XD
-from sim_core.constraint_wheel_pieces import supports as supports_pieces
-from sim_core.constraint_wheel_pieces import tabulate_pieces
+from sim_core.constraint.table import ConstraintTable
+from sim_core.constraint.wheel_pieces import N_K as PN_K
+from sim_core.constraint.wheel_pieces import N_SL as PN_SL
+from sim_core.constraint.wheel_pieces import N_SR as PN_SR
+from sim_core.constraint.wheel_pieces import N_V as PN_V
+from sim_core.constraint.wheel_pieces import N_X as PN_X
+from sim_core.constraint.wheel_pieces import N_XD as PN_XD
+from sim_core.constraint.wheel_pieces import supports as supports_pieces
+from sim_core.constraint.wheel_pieces import tabulate_pieces
 from sim_core.rail import RAIL_SAMPLED, RAIL_STEP, RailProfile, rail_height
 from sim_core.wheel import (
     TWO_PI,
@@ -1312,7 +1312,7 @@ def _tabulate_wheel_pieces(
     dx: float | None,
     resolution: float,
 ) -> ConstraintTable:
-    """An out-of-round wheel on a flat or cosine rail by the piece sweep (sim_core.constraint_wheel_pieces)."""
+    """An out-of-round wheel on a flat or cosine rail by the piece sweep (sim_core.constraint.wheel_pieces)."""
     R = wheel.nominal_radius
     step = float(dx) if dx is not None else min(resolution, 2e-3)
     periodic = TWO_PI * R if rail.kind == "flat" else 0.0
@@ -1437,7 +1437,7 @@ def _tabulate_polyline(
     dx: float | None,
     resolution: float,
 ) -> ConstraintTable:
-    """An out-of-round wheel on a sampled rail (sim_core.constraint_polyline).
+    """An out-of-round wheel on a sampled rail (sim_core.constraint.polyline).
 
     The cell sweep inside the stretches where the wheel's out-of-roundness can reach the
     contact (all of it for a sampled outline), the round wheel's closed form elsewhere.

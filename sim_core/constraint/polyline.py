@@ -1,7 +1,7 @@
 """Fast exact y_C^k of an out-of-round wheel on a polyline (sampled, file, dented) rail.
 
 On a polyline rail y_r(p) (vertices (x_i, y_i), segment slopes s_j) and a wheel cut into
-pieces (:func:`sim_core.constraint_wheel_pieces.wheel_pieces`: one smooth formula r(θ) each,
+pieces (:func:`sim_core.constraint.wheel_pieces.wheel_pieces`: one smooth formula r(θ) each,
 marked convex or concave; the round part of a flat wheel is one arc), the objective of
 MODEL.md §2,
 
@@ -52,7 +52,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from sim_core.constraint_wheel_pieces import (
+from sim_core.constraint.wheel_pieces import (
     PIECE_ARC,
     PIECE_CHORD,
     PIECE_HAVERSINE,
@@ -61,13 +61,13 @@ from sim_core.constraint_wheel_pieces import (
     _shift,
     wheel_pieces,
 )
-from sim_core.constraint_wheel_pieces import _drop as _drop_lb
+from sim_core.constraint.wheel_pieces import _drop as _drop_lb
 from sim_core.rail import RailProfile
 from sim_core.wheel import TWO_PI, WheelOutline
 
 __all__ = ["RailPolyline", "flat_zones", "polyline_pieces", "rail_polyline", "supports_polyline"]
 
-# piece table columns (as in constraint_wheel_pieces)
+# piece table columns (as in wheel_pieces)
 _T0, _T1, _KIND, _C0, _C1, _CEN, _CONC, _DRMAX = range(8)
 
 FT_T, FT_W, FT_V = 0, 1, 2
