@@ -15,7 +15,15 @@ MODULES += ["service.physics_inputs"]
 
 
 def test_every_module_is_listed() -> None:
-    for name in ("materials", "contact_laws", "constraint", "constraint.table", "passage", "integrator", "dents"):
+    for name in (
+        "materials",
+        "contact_laws",
+        "constraint",
+        "constraint.table",
+        "passage",
+        "integrator",
+        "dents",
+    ):
         assert f"sim_core.{name}" in MODULES
 
 

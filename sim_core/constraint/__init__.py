@@ -21,16 +21,14 @@ Worked example: a round wheel on a flat rail never leaves y = 0:
     0.0
 """
 
+from sim_core.constraint.flat_rail import flat_constraint
+from sim_core.constraint.general import evaluate_exact
+from sim_core.constraint.profile import profile_constraint
+from sim_core.constraint.spectrum import amplitude_spectrum
+from sim_core.constraint.stiffness import curvature_stiffness_scale
 from sim_core.constraint.table import ConstraintTable
-from sim_core.constraint.tabulate import (
-    amplitude_spectrum,
-    curvature_stiffness_scale,
-    evaluate_exact,
-    flat_constraint,
-    profile_constraint,
-    tabulate_constraint,
-    warm_up_constraint,
-)
+from sim_core.constraint.tabulate import tabulate_constraint
+from sim_core.constraint.warm_up import warm_up_constraint
 
 __all__ = [
     "ConstraintTable",

@@ -34,7 +34,7 @@ with the cubic Hermite interpolant.
 For an ideal or rounded flat (r <= R everywhere), y_C^k equals the round wheel's constraint
 wherever the flat cannot reach the contact: any winning ψ has R(1 - cos ψ) <= Δy + d (Δy the
 rail's height range, d the flat's depth), so outside the *flat zones* |φ| <= θ_flat + ψ_max
-the round-wheel closed form (:func:`sim_core.constraint._tabulate_poly`) is exact, and the
+the round-wheel closed form (:mod:`sim_core.constraint.round_polyline`) is exact, and the
 sweep above runs only inside the zones (a few % of the stretch).
 
 The wheel-independent work (the polyline with its extension, segment slopes) is made once per
@@ -45,13 +45,26 @@ from __future__ import annotations
 
 import itertools
 import math
-import weakref
-from typing import NamedTuple
 
 import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from sim_core.constraint.nodes import (
+    HERMITE_TOL,
+    NCOL,
+    SL,
+    SR,
+    XD,
+    K,
+    V,
+    X,
+    grow,
+    table_from_nodes,
+)
+from sim_core.constraint.rail_polyline import RailPolyline, rail_polyline
+from sim_core.constraint.round_polyline import poly_points, round_nodes
+from sim_core.constraint.table import ConstraintTable
 from sim_core.constraint.wheel_pieces import (
     PIECE_ARC,
     PIECE_CHORD,
@@ -65,17 +78,20 @@ from sim_core.constraint.wheel_pieces import _drop as _drop_lb
 from sim_core.rail import RailProfile
 from sim_core.wheel import TWO_PI, WheelOutline
 
-__all__ = ["RailPolyline", "flat_zones", "polyline_pieces", "rail_polyline", "supports_polyline"]
+__all__ = [
+    "RailPolyline",
+    "flat_zones",
+    "polyline_pieces",
+    "rail_polyline",
+    "supports_polyline",
+    "tabulate_polyline",
+]
 
 # piece table columns (as in wheel_pieces)
 _T0, _T1, _KIND, _C0, _C1, _CEN, _CONC, _DRMAX = range(8)
 
 FT_T, FT_W, FT_V = 0, 1, 2
 """Feature types: piece interior tangent to a segment, wheel vertex on a segment, rail vertex under a piece."""
-
-# node columns (the same as sim_core.constraint's _X, _V, _SL, _SR, _XD, _PL, _PR, _GL, _GR, _K)
-_X, _V, _SL, _SR, _XD, _K = 0, 1, 2, 3, 4, 9
-_NCOL = 10
 
 MAX_RAIL_SLOPE = 0.2
 """The sweep is used on rails whose segments are no steeper than this (a step or a dented step's
@@ -87,40 +103,6 @@ CLIP = 0.5
 HAVERSINE_SUBPIECES = 16
 """A rounded flat's haversine is cut into this many sub-pieces, each with its own largest
 r - R: the bound of the global solve then skips the rail segments that cannot reach the flat."""
-
-
-class RailPolyline(NamedTuple):
-    """The wheel-independent preprocessing of a polyline rail."""
-
-    vx: NDArray[np.float64]
-    vy: NDArray[np.float64]
-    slope: NDArray[np.float64]
-    ymax: float
-    ymin: float
-
-
-_CACHE: dict[int, tuple[weakref.ref[RailProfile], float, float, RailPolyline]] = {}
-
-
-def rail_polyline(rail: RailProfile, lo: float, hi: float, R: float) -> RailPolyline:
-    """The rail's vertices extended flat to cover [lo - 2R, hi + 2R], with segment slopes.
-
-    Cached per rail object (while it lives) for any request it covers: tabulating many
-    wheels on one rail does this once.
-    """
-    key = id(rail)
-    hit = _CACHE.get(key)
-    if hit is not None and hit[0]() is rail and hit[1] <= lo - 2 * R and hit[2] >= hi + 2 * R:
-        return hit[3]
-    a = min(lo, float(rail.x[0])) - 2 * R - 1.0
-    b = max(hi, float(rail.x[-1])) + 2 * R + 1.0
-    vx = np.concatenate(([a], rail.x, [b]))
-    vy = np.concatenate(([rail.y[0]], rail.y, [rail.y[-1]]))
-    poly = RailPolyline(vx, vy, np.diff(vy) / np.diff(vx), float(vy.max()), float(vy.min()))
-    for k in [k for k, v in _CACHE.items() if v[0]() is None]:
-        del _CACHE[k]
-    _CACHE[key] = (weakref.ref(rail), a, b, poly)
-    return poly
 
 
 def supports_polyline(wheel: WheelOutline, rail: RailProfile) -> bool:
@@ -661,24 +643,6 @@ def _handover(tA: int, gA: int, rA: int, tB: int, gB: int, rB: int) -> bool:
     return False
 
 
-@numba.njit(cache=True)
-def _grow2(a: NDArray[np.float64], n: int) -> NDArray[np.float64]:
-    if n < a.shape[0]:
-        return a
-    b = np.empty((2 * a.shape[0] + 64, a.shape[1]))
-    b[: a.shape[0]] = a
-    return b
-
-
-@numba.njit(cache=True)
-def _grow2i(a: NDArray[np.int64], n: int) -> NDArray[np.int64]:
-    if n < a.shape[0]:
-        return a
-    b = np.empty((2 * a.shape[0] + 64, a.shape[1]), np.int64)
-    b[: a.shape[0]] = a
-    return b
-
-
 @numba.njit(cache=True, nogil=True)
 def sweep_kernel(
     P: NDArray[np.float64],
@@ -692,11 +656,11 @@ def sweep_kernel(
     nint: int,
     hermite_tol: float,
 ) -> NDArray[np.float64]:
-    """Nodes (columns of sim_core.constraint: x, y, slope left/right, x_D, …, kink flag) over [x0, x1]."""
+    """Node rows (:mod:`sim_core.constraint.nodes`) over [x0, x1], sorted by x."""
     n = P.shape[0]
     ymax = vy.max()
     drg = max(P[:, _DRMAX].max(), 0.0)
-    nodes = np.zeros((2 * nint + 64, _NCOL))
+    nodes = np.zeros((2 * nint + 64, NCOL))
     feats = np.empty((2 * nint + 64, 7), np.int64)  # left (t, g, r), right (t, g, r), hint
     nn = 0
     h0 = (x1 - x0) / nint
@@ -708,11 +672,11 @@ def sweep_kernel(
         v, t, g, r, s, xd, g0 = _global(P, n, R, vx, vy, sl, ymax, drg, phase, xv, hint, pt, pg, pr)
         pt, pg, pr = t, g, r
         hint = g0
-        nodes[nn, _X] = xv
-        nodes[nn, _V] = v
-        nodes[nn, _SL] = s
-        nodes[nn, _SR] = s
-        nodes[nn, _XD] = xd
+        nodes[nn, X] = xv
+        nodes[nn, V] = v
+        nodes[nn, SL] = s
+        nodes[nn, SR] = s
+        nodes[nn, XD] = xd
         feats[nn, 0] = t
         feats[nn, 1] = g
         feats[nn, 2] = r
@@ -734,8 +698,8 @@ def sweep_kernel(
         ns -= 1
         ia = stack[ns, 0]
         ib = stack[ns, 1]
-        xa = nodes[ia, _X]
-        xb = nodes[ib, _X]
+        xa = nodes[ia, X]
+        xb = nodes[ib, X]
         hlen = xb - xa
         scale = max(1.0, abs(xa))
         if hlen <= 4e-13 * scale:
@@ -811,15 +775,15 @@ def sweep_kernel(
                     xn = xs
                     third = True
                 elif xa < xs < xb:
-                    nodes = _grow2(nodes, nn + 1)
-                    feats = _grow2i(feats, nn + 1)
+                    nodes = grow(nodes, nn + 1)
+                    feats = grow(feats, nn + 1)
                     nodes[nn] = 0.0
-                    nodes[nn, _X] = xs
-                    nodes[nn, _V] = max(top, vg)
-                    nodes[nn, _SL] = sa
-                    nodes[nn, _SR] = sb
-                    nodes[nn, _XD] = xdb
-                    nodes[nn, _K] = 1.0
+                    nodes[nn, X] = xs
+                    nodes[nn, V] = max(top, vg)
+                    nodes[nn, SL] = sa
+                    nodes[nn, SR] = sb
+                    nodes[nn, XD] = xdb
+                    nodes[nn, K] = 1.0
                     feats[nn, 0] = tA
                     feats[nn, 1] = gA
                     feats[nn, 2] = rA
@@ -829,7 +793,7 @@ def sweep_kernel(
                     feats[nn, 6] = hint
                     ic = nn
                     nn += 1
-                    stack = _grow2i(stack, ns + 2)
+                    stack = grow(stack, ns + 2)
                     stack[ns, 0] = ic
                     stack[ns, 1] = ib
                     stack[ns + 1, 0] = ia
@@ -839,19 +803,19 @@ def sweep_kernel(
                 else:
                     # the change sits on an end node: that node takes both sides' features
                     if xs - xa <= xb - xs:
-                        nodes[ia, _SR] = sb
-                        nodes[ia, _XD] = xdb
-                        nodes[ia, _K] = 1.0
+                        nodes[ia, SR] = sb
+                        nodes[ia, XD] = xdb
+                        nodes[ia, K] = 1.0
                         feats[ia, 3] = tB
                         feats[ia, 4] = gB
                         feats[ia, 5] = rB
                     else:
-                        nodes[ib, _SL] = sa
-                        nodes[ib, _K] = 1.0
+                        nodes[ib, SL] = sa
+                        nodes[ib, K] = 1.0
                         feats[ib, 0] = tA
                         feats[ib, 1] = gA
                         feats[ib, 2] = rA
-                    stack = _grow2i(stack, ns + 1)
+                    stack = grow(stack, ns + 1)
                     stack[ns, 0] = ia
                     stack[ns, 1] = ib
                     ns += 1
@@ -869,8 +833,8 @@ def sweep_kernel(
             P, n, R, vx, vy, sl, ymax, drg, phase, xn, hint, tA, gA, rA
         )
         if not split:
-            hm = 0.5 * (nodes[ia, _V] + nodes[ib, _V]) + 0.125 * hlen * (
-                nodes[ia, _SR] - nodes[ib, _SL]
+            hm = 0.5 * (nodes[ia, V] + nodes[ib, V]) + 0.125 * hlen * (
+                nodes[ia, SR] - nodes[ib, SL]
             )
             if abs(vg - hm) <= hermite_tol:
                 if tg == tA and gg == gA and rg == rA:
@@ -881,14 +845,14 @@ def sweep_kernel(
                     continue
         if not (xa < xn < xb):
             continue
-        nodes = _grow2(nodes, nn + 1)
-        feats = _grow2i(feats, nn + 1)
+        nodes = grow(nodes, nn + 1)
+        feats = grow(feats, nn + 1)
         nodes[nn] = 0.0
-        nodes[nn, _X] = xn
-        nodes[nn, _V] = vg
-        nodes[nn, _SL] = sg
-        nodes[nn, _SR] = sg
-        nodes[nn, _XD] = xdg
+        nodes[nn, X] = xn
+        nodes[nn, V] = vg
+        nodes[nn, SL] = sg
+        nodes[nn, SR] = sg
+        nodes[nn, XD] = xdg
         feats[nn, 0] = tg
         feats[nn, 1] = gg
         feats[nn, 2] = rg
@@ -898,12 +862,127 @@ def sweep_kernel(
         feats[nn, 6] = g0
         ic = nn
         nn += 1
-        stack = _grow2i(stack, ns + 2)
+        stack = grow(stack, ns + 2)
         stack[ns, 0] = ic
         stack[ns, 1] = ib
         stack[ns + 1, 0] = ia
         stack[ns + 1, 1] = ic
         ns += 2
     out = nodes[:nn]
-    order = np.argsort(out[:, _X], kind="mergesort")
+    order = np.argsort(out[:, X], kind="mergesort")
     return out[order]
+
+
+FLAT_ZONE_MARGIN = 1e-4
+"""Margin (rad) on the flat's angular extent when deciding where the round table holds."""
+
+
+def _contact_zones(
+    rn: NDArray[np.float64], R: float, half: float, phase: float, x0: float, x1: float
+) -> list[tuple[float, float]]:
+    """Stretches of [x0, x1] where a flat (|θ| <= ``half``, r <= R) can change y_C^k.
+
+    A flat lies inside the nominal circle, so y_C^k equals the round wheel's constraint
+    wherever the round wheel's own contact point is on the round part of the outline. That
+    point's wheel angle θ* = asin((x_D - x)/R) + φ is non-decreasing along the stretch (the
+    contact point of a round wheel only moves forward; while it pivots on a rail vertex θ*
+    falls by at most (1 - cos ψ)/(R cos ψ) per metre, ~1e-7 rad per node interval, far
+    below FLAT_ZONE_MARGIN), so between two nodes of the round table it stays between its
+    values at the nodes: an interval belongs to a zone if that range meets a flat.
+    """
+    x = rn[:, X]
+    i0 = max(int(np.searchsorted(x, x0, side="right")) - 1, 0)
+    i1 = min(int(np.searchsorted(x, x1, side="left")) + 1, x.size)
+    xs = x[i0:i1]
+    th = np.arcsin(np.clip((rn[i0:i1, XD] - xs) / R, -1.0, 1.0)) + phase + xs / R
+    lo, hi = th[:-1] - FLAT_ZONE_MARGIN, th[1:] + FLAT_ZONE_MARGIN
+    k = np.floor((lo + half) / TWO_PI)
+    # the first flat at or after lo - half ... the interval meets it if it starts before its end
+    hit = np.zeros(lo.size, bool)
+    for kk in (k, k + 1.0):
+        hit |= (lo <= TWO_PI * kk + half) & (hi >= TWO_PI * kk - half)
+    zones: list[tuple[float, float]] = []
+    for i in np.flatnonzero(hit):
+        a, b = max(float(xs[i]), x0), min(float(xs[i + 1]), x1)
+        if b <= a:
+            continue
+        if zones and a <= zones[-1][1]:
+            zones[-1] = (zones[-1][0], b)
+        else:
+            zones.append((a, b))
+    return zones
+
+
+def tabulate_polyline(
+    wheel: WheelOutline,
+    rail: RailProfile,
+    a: float,
+    b: float,
+    phase: float,
+    dx: float | None,
+    resolution: float,
+) -> ConstraintTable:
+    """An out-of-round wheel on a sampled rail (sim_core.constraint.polyline).
+
+    The cell sweep inside the stretches where the wheel's out-of-roundness can reach the
+    contact (all of it for a sampled outline), the round wheel's closed form elsewhere.
+    """
+    R = wheel.nominal_radius
+    step = float(dx) if dx is not None else min(resolution, 1e-3)
+    margin = 0.01 + 2.0 * step
+    x0, x1 = a - margin, b + margin
+    poly = rail_polyline(rail, x0, x1, R)
+    P = polyline_pieces(wheel)
+    parts: list[NDArray[np.float64]] = []
+
+    def nint(lo: float, hi: float) -> int:
+        return max(math.ceil((hi - lo) / step), 2)
+
+    if wheel.kind in ("ideal_flat", "rounded_flat"):
+        zones = _contact_zones(
+            round_nodes(rail, R, step, x0, x1), R, wheel.flat_half_angle, phase, x0, x1
+        )
+    else:
+        zones = flat_zones(wheel, poly, phase, x0, x1)
+    # the stretch in order: gaps (round closed form, cut from the rail's round table at exact
+    # end nodes unless a zone supplies the node) and zones (the cell sweep)
+    pieces: list[tuple[str, float, float]] = []
+    cur = x0
+    for za, zb in zones:
+        if za > cur:
+            pieces.append(("gap", cur, za))
+        pieces.append(("zone", za, zb))
+        cur = zb
+    if cur < x1:
+        pieces.append(("gap", cur, x1))
+    zone_ends = {e for _, za, zb in pieces if _ == "zone" for e in (za, zb)}
+    rn = np.empty((0, NCOL))
+    ends = np.empty((0, NCOL))
+    if any(kind == "gap" for kind, _, _ in pieces):
+        rn = round_nodes(rail, R, step, x0, x1)
+        cuts = np.array(
+            [e for kind, c, d in pieces if kind == "gap" for e in (c, d) if e not in zone_ends]
+        )
+        ends = poly_points(cuts, R, poly.vx, poly.vy) if cuts.size else ends
+    ie = 0
+    for kind, c, d in pieces:
+        if kind == "zone":
+            parts.append(
+                sweep_kernel(
+                    P, R, poly.vx, poly.vy, poly.slope, phase, c, d, nint(c, d), HERMITE_TOL
+                )
+            )
+            continue
+        if c not in zone_ends:
+            parts.append(ends[ie : ie + 1])
+            ie += 1
+        lo_i = int(np.searchsorted(rn[:, X], c, side="right"))
+        hi_i = int(np.searchsorted(rn[:, X], d, side="left"))
+        parts.append(rn[lo_i:hi_i])
+        if d not in zone_ends:
+            parts.append(ends[ie : ie + 1])
+            ie += 1
+    nodes = np.concatenate(parts)
+    if not np.all(np.diff(nodes[:, X]) > 0):
+        nodes = nodes[np.argsort(nodes[:, X], kind="mergesort")]
+    return table_from_nodes(nodes, 0.0, resolution, step)

@@ -44,6 +44,20 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from sim_core.constraint.nodes import (
+    HERMITE_TOL,
+    NCOL,
+    SL,
+    SR,
+    XD,
+    K,
+    V,
+    X,
+    grow,
+    stretch,
+    table_from_nodes,
+)
+from sim_core.constraint.table import ConstraintTable
 from sim_core.rail import RAIL_COSINE, RAIL_FLAT, RailProfile
 from sim_core.wheel import TWO_PI, WheelOutline
 
@@ -54,6 +68,7 @@ __all__ = [
     "PIECE_LINEAR",
     "supports",
     "tabulate_pieces",
+    "tabulate_wheel_pieces",
     "wheel_pieces",
 ]
 
@@ -68,9 +83,6 @@ TIE = 1e-18
 # columns of the piece table
 _T0, _T1, _KIND, _C0, _C1, _CEN, _CONC, _DRMAX = range(8)
 _NP = 8
-
-# columns of the returned nodes
-N_X, N_V, N_SL, N_SR, N_XD, N_K = range(6)
 
 
 def supports(wheel: WheelOutline, rail: RailProfile) -> bool:
@@ -586,24 +598,6 @@ def _root_cross(
     return 0.5 * (a + b)
 
 
-@numba.njit(cache=True)
-def _grow_f(a: NDArray[np.float64], n: int) -> NDArray[np.float64]:
-    if n < a.shape[0]:
-        return a
-    b = np.empty((2 * a.shape[0] + 64, a.shape[1]))
-    b[: a.shape[0]] = a
-    return b
-
-
-@numba.njit(cache=True)
-def _grow_i(a: NDArray[np.int64], n: int) -> NDArray[np.int64]:
-    if n < a.shape[0]:
-        return a
-    b = np.empty((2 * a.shape[0] + 64, a.shape[1]), np.int64)
-    b[: a.shape[0]] = a
-    return b
-
-
 @numba.njit(cache=True, nogil=True)
 def tabulate_pieces_kernel(
     P: NDArray[np.float64],
@@ -617,10 +611,10 @@ def tabulate_pieces_kernel(
     nint: int,
     hermite_tol: float,
 ) -> NDArray[np.float64]:
-    """Nodes (rows: x, y, slope left, slope right, x_D, kink flag) over [x0, x1], sorted by x."""
+    """Node rows (:mod:`sim_core.constraint.nodes`) over [x0, x1], sorted by x."""
     n = P.shape[0]
     drg = P[:, _DRMAX].max()
-    nodes = np.empty((4 * nint + 64, 6))
+    nodes = np.zeros((4 * nint + 64, NCOL))
     feats = np.empty((4 * nint + 64, 3), np.int64)  # feature left, feature right, piece hint
     nn = 0
     h0 = (x1 - x0) / nint
@@ -630,12 +624,12 @@ def tabulate_pieces_kernel(
         xv = x0 + i * h0 if i < nint else x1
         v, f, s, xd, g0 = _global(P, n, R, rc, ra, rl, phase, drg, xv, hint)
         hint = g0
-        nodes[nn, N_X] = xv
-        nodes[nn, N_V] = v
-        nodes[nn, N_SL] = s
-        nodes[nn, N_SR] = s
-        nodes[nn, N_XD] = xd
-        nodes[nn, N_K] = 0.0
+        nodes[nn, X] = xv
+        nodes[nn, V] = v
+        nodes[nn, SL] = s
+        nodes[nn, SR] = s
+        nodes[nn, XD] = xd
+        nodes[nn, K] = 0.0
         feats[nn, 0] = f
         feats[nn, 1] = f
         feats[nn, 2] = g0
@@ -655,8 +649,8 @@ def tabulate_pieces_kernel(
         ia = stack[ns, 0]
         ib = stack[ns, 1]
         retry = stack[ns, 2]
-        xa = nodes[ia, N_X]
-        xb = nodes[ib, N_X]
+        xa = nodes[ia, X]
+        xb = nodes[ib, X]
         h = xb - xa
         scale = max(1.0, abs(xa))
         if h <= 4e-13 * scale:
@@ -699,11 +693,11 @@ def tabulate_pieces_kernel(
             if not math.isnan(xn) and xn <= xa and fr != fA and retry < 4:
                 # the change is at xa itself: it becomes the right side of node ia
                 if kn > 0.0:
-                    nodes[ia, N_SR] = sr
-                    nodes[ia, N_K] = 1.0
-                nodes[ia, N_XD] = xdn
+                    nodes[ia, SR] = sr
+                    nodes[ia, K] = 1.0
+                nodes[ia, XD] = xdn
                 feats[ia, 1] = fr
-                stack = _grow_i(stack, ns + 1)
+                stack = grow(stack, ns + 1)
                 stack[ns, 0] = ia
                 stack[ns, 1] = ib
                 stack[ns, 2] = retry + 1
@@ -711,10 +705,10 @@ def tabulate_pieces_kernel(
                 continue
             if not math.isnan(xn) and xn >= xb and fl != fB and retry < 4:
                 if kn > 0.0:
-                    nodes[ib, N_SL] = sl
-                    nodes[ib, N_K] = 1.0
+                    nodes[ib, SL] = sl
+                    nodes[ib, K] = 1.0
                 feats[ib, 0] = fl
-                stack = _grow_i(stack, ns + 1)
+                stack = grow(stack, ns + 1)
                 stack[ns, 0] = ia
                 stack[ns, 1] = ib
                 stack[ns, 2] = retry + 1
@@ -730,29 +724,27 @@ def tabulate_pieces_kernel(
         elif h > 4.0 * 4e-13 * scale:
             m = 0.5 * (xa + xb)
             vg, fg, sg, xdg, g0 = _global(P, n, R, rc, ra, rl, phase, drg, m, hint)
-            hm = 0.5 * (nodes[ia, N_V] + nodes[ib, N_V]) + 0.125 * h * (
-                nodes[ia, N_SR] - nodes[ib, N_SL]
-            )
+            hm = 0.5 * (nodes[ia, V] + nodes[ib, V]) + 0.125 * h * (nodes[ia, SR] - nodes[ib, SL])
             if fg != fA or abs(vg - hm) > hermite_tol:
                 xn, vn, sl, sr, xdn, fl, fr, hint = m, vg, sg, sg, xdg, fg, fg, g0
             else:
                 continue
         else:
             continue
-        nodes = _grow_f(nodes, nn + 1)
-        feats = _grow_i(feats, nn + 1)
-        nodes[nn, N_X] = xn
-        nodes[nn, N_V] = vn
-        nodes[nn, N_SL] = sl
-        nodes[nn, N_SR] = sr
-        nodes[nn, N_XD] = xdn
-        nodes[nn, N_K] = kn
+        nodes = grow(nodes, nn + 1)
+        feats = grow(feats, nn + 1)
+        nodes[nn, X] = xn
+        nodes[nn, V] = vn
+        nodes[nn, SL] = sl
+        nodes[nn, SR] = sr
+        nodes[nn, XD] = xdn
+        nodes[nn, K] = kn
         feats[nn, 0] = fl
         feats[nn, 1] = fr
         feats[nn, 2] = hint
         ic = nn
         nn += 1
-        stack = _grow_i(stack, ns + 2)
+        stack = grow(stack, ns + 2)
         stack[ns, 0] = ic
         stack[ns, 1] = ib
         stack[ns, 2] = 0
@@ -761,7 +753,7 @@ def tabulate_pieces_kernel(
         stack[ns + 1, 2] = 0
         ns += 2
     out = nodes[:nn]
-    order = np.argsort(out[:, N_X], kind="mergesort")
+    order = np.argsort(out[:, X], kind="mergesort")
     return out[order]
 
 
@@ -774,7 +766,7 @@ def tabulate_pieces(
     phase: float,
     hermite_tol: float,
 ) -> NDArray[np.float64]:
-    """Nodes (x, y, slope left, slope right, x_D, kink flag) of y_C^k over [x0, x1] by the piece sweep.
+    """Node rows (:mod:`sim_core.constraint.nodes`) of y_C^k over [x0, x1] by the piece sweep.
 
     ``nint`` grid intervals to start from (refined where needed).
     """
@@ -796,3 +788,28 @@ def tabulate_pieces(
         int(nint),
         float(hermite_tol),
     )
+
+
+def tabulate_wheel_pieces(
+    wheel: WheelOutline,
+    rail: RailProfile,
+    a: float,
+    b: float,
+    phase: float,
+    dx: float | None,
+    resolution: float,
+) -> ConstraintTable:
+    """The table of an out-of-round wheel on a flat or cosine rail over [a, b] by the piece
+    sweep (node spacing ``dx``, default the resolution capped at 2 mm; one turn on a flat rail)."""
+    R = wheel.nominal_radius
+    step = float(dx) if dx is not None else min(resolution, 2e-3)
+    periodic = TWO_PI * R if rail.kind == "flat" else 0.0
+    x0, x1, _ = stretch(a, b, step, periodic)
+    nint = max(math.ceil((x1 - x0) / step), 4)
+    nodes = tabulate_pieces(wheel, rail, x0, x1, nint, phase, HERMITE_TOL)
+    if periodic > 0:
+        # both ends are the same point: the left slope comes from the last node, the right from the first
+        nodes[0, SL] = nodes[-1, SL]
+        nodes[-1, SR] = nodes[0, SR]
+        nodes[0, K] = max(nodes[0, K], nodes[-1, K])
+    return table_from_nodes(nodes, periodic, resolution, step)

@@ -1,0 +1,138 @@
+"""Node rows shared by the tabulators, and the table made from them.
+
+Every compiled tabulator of this package returns *node rows*: one row per node with
+the columns ``X`` (wheel position, m), ``V`` (y_C^k, m), ``SL``/``SR`` (slopes left and
+right), ``XD`` (contact point, m), ``PL``/``PR``/``GL``/``GR`` (the general search's
+contact angle ψ and dψ/dx on both sides) and ``K`` (1 at a kink). :func:`table_from_nodes`
+turns them into a :class:`~sim_core.constraint.table.ConstraintTable`.
+
+Worked example: two nodes 1 mm apart, 1 µm up with slope 1e-3 (a straight line) make a
+two-node table that is exact in between:
+
+    >>> rows = np.zeros((2, NCOL))
+    >>> rows[:, X] = [0.0, 1e-3]
+    >>> rows[:, V] = [0.0, 1e-6]
+    >>> rows[:, SL] = rows[:, SR] = 1e-3
+    >>> t = table_from_nodes(rows, 0.0, 1e-3, 1e-3)
+    >>> round(float(t.evaluate(np.array([5e-4]))[0]) * 1e6, 12), t.kinks.size
+    (0.5, 0)
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from sim_core.constraint.table import ConstraintTable
+from sim_core.rail import RailProfile
+from sim_core.wheel import WheelOutline
+
+MAX_RESOLUTION = 0.01
+"""Upper bound of a table's ``resolution`` (m) when the inputs have no finer feature."""
+
+HERMITE_TOL = 1e-13
+"""Largest accepted miss (m) of the Hermite interpolant at an interval's midpoint."""
+
+KINK_SLOPE = 1e-7
+"""Slope jumps at or below this are treated as round-off: no kink, the mean slope on both sides
+(a Hermite error of at most ~h·1e-7/8 m if such a jump were real)."""
+
+X, V, SL, SR, XD, PL, PR, GL, GR, K = range(10)
+"""Columns of a node row."""
+NCOL = 10
+
+
+@numba.njit(cache=True)
+def grow(a: NDArray, n: int) -> NDArray:
+    """``a`` if it has room for row ``n``, else a copy with twice the rows (any dtype)."""
+    if n < a.shape[0]:
+        return a
+    b = np.empty((2 * a.shape[0] + 64, a.shape[1]), a.dtype)
+    b[: a.shape[0]] = a
+    return b
+
+
+@numba.njit(cache=True)
+def push(stack: NDArray[np.int64], ns: int, ia: int, ib: int) -> NDArray[np.int64]:
+    """Interval (ia, ib) onto the refinement stack at row ``ns`` (grown if full)."""
+    stack = grow(stack, ns)
+    stack[ns, 0] = ia
+    stack[ns, 1] = ib
+    return stack
+
+
+def check_range(x_start: float, x_end: float) -> tuple[float, float]:
+    """(x_start, x_end) as floats, or an error saying what is wrong with them."""
+    a, b = float(x_start), float(x_end)
+    if not (math.isfinite(a) and math.isfinite(b)):
+        raise ValueError(
+            f"constraint: x_start and x_end must be finite, got {x_start!r}, {x_end!r}"
+        )
+    if not b > a:
+        raise ValueError(f"constraint: x_end must exceed x_start, got x_start={a!r}, x_end={b!r}")
+    return a, b
+
+
+def resolution(wheel: WheelOutline, rail: RailProfile) -> float:
+    """The finest input feature (m): rail sampling, λ/16, wheel sample arc, flat length/16, <= 10 mm."""
+    return min(rail.min_feature_length, wheel.min_feature_length, MAX_RESOLUTION)
+
+
+def stretch(a: float, b: float, step: float, period: float) -> tuple[float, float, int]:
+    """(x0, x1, intervals) a tabulator covers: one period from ``a``, or [a, b] plus a margin
+    of 10 mm + 2·step on each side, in steps of at most ``step``."""
+    if period > 0:
+        x0, x1 = a, a + period
+    else:
+        margin = 0.01 + 2.0 * step
+        x0, x1 = a - margin, b + margin
+    return x0, x1, max(math.ceil((x1 - x0) / step), 4 if period > 0 else 2)
+
+
+def table_from_nodes(
+    nodes: NDArray[np.float64], period: float, resolution: float, dx: float
+) -> ConstraintTable:
+    """The table of node rows (sorted by x): close nodes merged, round-off slope jumps smoothed."""
+    nodes = merge_close(nodes)
+    # a slope jump below KINK_SLOPE is round-off, not a kink: make the node smooth
+    tiny = np.abs(nodes[:, SL] - nodes[:, SR]) <= KINK_SLOPE
+    mean = 0.5 * (nodes[:, SL] + nodes[:, SR])
+    nodes[tiny, SL] = mean[tiny]
+    nodes[tiny, SR] = mean[tiny]
+    kink = (nodes[:, K] > 0) & ~tiny
+    if period > 0:
+        nodes[-1, X] = nodes[0, X] + period
+        kink[-1] = False
+    return ConstraintTable(
+        x=nodes[:, X].copy(),
+        y=nodes[:, V].copy(),
+        slope_left=nodes[:, SL].copy(),
+        slope_right=nodes[:, SR].copy(),
+        contact_x=nodes[:, XD].copy(),
+        kinks=nodes[kink, X].copy(),
+        period=float(period),
+        resolution=float(resolution),
+        meta={"dx": float(dx), "nodes": float(nodes.shape[0])},
+    )
+
+
+@numba.njit(cache=True)
+def merge_close(nodes: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Nodes closer than the position round-off merged (the left slope of the first, the
+    right slope and contact point of the last, a kink if any was one)."""
+    n = nodes.shape[0]
+    out = np.empty_like(nodes)
+    m = 0
+    for i in range(n):
+        xi = nodes[i, X]
+        if m > 0 and xi - nodes[i - 1, X] <= 1e-13 * max(1.0, abs(xi)):
+            out[m - 1, SR] = nodes[i, SR]
+            out[m - 1, XD] = nodes[i, XD]
+            out[m - 1, K] = max(out[m - 1, K], nodes[i, K])
+            continue
+        out[m] = nodes[i]
+        m += 1
+    return out[:m]
