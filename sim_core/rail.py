@@ -30,6 +30,8 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sim_core.lookup import linear, locate
+
 RAIL_FLAT = 0
 RAIL_COSINE = 1
 RAIL_STEP = 2
@@ -257,16 +259,7 @@ def rail_height(
         return ys[0]
     if x >= xs[n - 1]:
         return ys[n - 1]
-    lo = 0
-    hi = n - 1
-    while hi - lo > 1:
-        mid = (lo + hi) >> 1
-        if xs[mid] <= x:
-            lo = mid
-        else:
-            hi = mid
-    w = (x - xs[lo]) / (xs[lo + 1] - xs[lo])
-    return ys[lo] + w * (ys[lo + 1] - ys[lo])
+    return linear(xs, ys, x, locate(xs, x, 0))
 
 
 @numba.njit(cache=True)

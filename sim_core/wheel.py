@@ -31,6 +31,8 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sim_core.lookup import linear, locate
+
 WHEEL_ROUND = 0
 WHEEL_IDEAL_FLAT = 1
 WHEEL_ROUNDED_FLAT = 2
@@ -304,25 +306,9 @@ def wheel_offset(
     if t >= th[n - 1]:
         w = (t - th[n - 1]) / (t0 + TWO_PI - th[n - 1])
         return dr[n - 1] + w * (dr[0] - dr[n - 1])
-    if a > 0.0:  # uniform samples: direct index
-        lo = min(max(int((t - t0) / a), 0), n - 2)
-        if th[lo] > t:
-            lo -= 1
-        elif th[lo + 1] <= t:
-            lo += 1
-        lo = min(max(lo, 0), n - 2)
-        w = (t - th[lo]) / (th[lo + 1] - th[lo])
-        return dr[lo] + w * (dr[lo + 1] - dr[lo])
-    lo = 0
-    hi = n - 1
-    while hi - lo > 1:
-        mid = (lo + hi) >> 1
-        if th[mid] <= t:
-            lo = mid
-        else:
-            hi = mid
-    w = (t - th[lo]) / (th[lo + 1] - th[lo])
-    return dr[lo] + w * (dr[lo + 1] - dr[lo])
+    # uniform samples (a > 0): the interval is found from its index directly
+    hint = min(max(int((t - t0) / a), 0), n - 2) if a > 0.0 else 0
+    return linear(th, dr, t, locate(th, t, hint))
 
 
 @numba.njit(cache=True)

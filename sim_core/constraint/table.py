@@ -33,6 +33,8 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from sim_core.lookup import locate, wrap
+
 _NONE = np.empty(0)
 
 
@@ -135,48 +137,6 @@ class ConstraintTable:
         n1 = int(np.floor((x1 - self.x[0]) / p)) + 1
         allk = (self.kinks[None, :] + p * np.arange(n0, n1 + 1)[:, None]).ravel()
         return np.unique(allk[(allk > x0) & (allk <= x1)])
-
-
-@numba.njit(cache=True, inline="always")
-def wrap(xv: float, x0: float, period: float) -> tuple[float, float]:
-    """(position inside the table, shift added) for a periodic table."""
-    if period <= 0.0:
-        return xv, 0.0
-    n = np.floor((xv - x0) * (1.0 / period))  # a division the look-up loops hoist
-    shift = n * period
-    return xv - shift, shift
-
-
-@numba.njit(cache=True, inline="always")
-def locate(x: NDArray[np.float64], xv: float, hint: int) -> int:
-    """Index i with x[i] <= xv < x[i+1] (clamped to [0, n-2]); starts at ``hint``."""
-    n = x.size
-    i = hint
-    if i < 0 or i > n - 2:
-        i = 0
-    if x[i] <= xv:
-        if i + 1 < n - 1 and xv >= x[i + 1]:
-            if i + 2 < n - 1 and xv >= x[i + 2]:
-                lo = i + 2
-                hi = n - 1
-                while hi - lo > 1:
-                    mid = (lo + hi) // 2
-                    if x[mid] <= xv:
-                        lo = mid
-                    else:
-                        hi = mid
-                return lo
-            return i + 1
-        return i
-    lo = 0
-    hi = i
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if x[mid] <= xv:
-            lo = mid
-        else:
-            hi = mid
-    return lo
 
 
 @numba.njit(cache=True, inline="always")
