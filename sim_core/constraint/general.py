@@ -27,6 +27,7 @@ is above it:
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -62,6 +63,24 @@ from sim_core.wheel import (
 
 __all__ = ["evaluate_exact", "tabulate_general"]
 
+
+class SearchCase(NamedTuple):
+    """A wheel and a rail as the compiled ψ-search reads them."""
+
+    wp: NDArray[np.float64]
+    """[code, R, a, b, bulge] of the wheel (:meth:`WheelOutline.compiled_args`, max excess)."""
+    wth: NDArray[np.float64]
+    """Sampled outline: angles (rad)."""
+    wdr: NDArray[np.float64]
+    """Sampled outline: r - R (m)."""
+    rp: NDArray[np.float64]
+    """[code, a, b] of the rail (:meth:`RailProfile.compiled_args`)."""
+    rxs: NDArray[np.float64]
+    """Sampled rail: positions (m)."""
+    rys: NDArray[np.float64]
+    """Sampled rail: heights (m)."""
+
+
 SLOPE_STEP = 1e-8
 """Half-width (m) of the central differences that give the general case's node slopes."""
 
@@ -79,14 +98,10 @@ def _objective(
     x: float,
     psi: float,
     phi: float,
-    wp: NDArray[np.float64],
-    wth: NDArray[np.float64],
-    wdr: NDArray[np.float64],
-    rp: NDArray[np.float64],
-    rxs: NDArray[np.float64],
-    rys: NDArray[np.float64],
+    sc: SearchCase,
 ) -> tuple[float, float]:
     """(y_r(x_D) + ρ cos ψ - R, x_D) without cancellation; wp = [code, R, a, b, bulge], rp = [code, a, b]."""
+    wp, wth, wdr, rp, rxs, rys = sc.wp, sc.wth, sc.wdr, sc.rp, sc.rxs, sc.rys
     R = wp[1]
     dr = wheel_offset(int(wp[0]), R, wp[2], wp[3], wth, wdr, psi + phi)
     s = math.sin(0.5 * psi)
@@ -116,12 +131,7 @@ def _golden(
     lo: float,
     hi: float,
     phi: float,
-    wp: NDArray[np.float64],
-    wth: NDArray[np.float64],
-    wdr: NDArray[np.float64],
-    rp: NDArray[np.float64],
-    rxs: NDArray[np.float64],
-    rys: NDArray[np.float64],
+    sc: SearchCase,
 ) -> tuple[float, float, float]:
     """Maximise the objective over ψ in [lo, hi]: golden section to 1e-8 rad, then a parabolic polish.
 
@@ -132,27 +142,27 @@ def _golden(
     a, b = lo, hi
     c = b - invphi * (b - a)
     d = a + invphi * (b - a)
-    gc, _ = _objective(x, c, phi, wp, wth, wdr, rp, rxs, rys)
-    gd, _ = _objective(x, d, phi, wp, wth, wdr, rp, rxs, rys)
+    gc, _ = _objective(x, c, phi, sc)
+    gd, _ = _objective(x, d, phi, sc)
     while b - a > 1e-8:
         if gc >= gd:
             b, d, gd = d, c, gc
             c = b - invphi * (b - a)
-            gc, _ = _objective(x, c, phi, wp, wth, wdr, rp, rxs, rys)
+            gc, _ = _objective(x, c, phi, sc)
         else:
             a, c, gc = c, d, gd
             d = a + invphi * (b - a)
-            gd, _ = _objective(x, d, phi, wp, wth, wdr, rp, rxs, rys)
+            gd, _ = _objective(x, d, phi, sc)
     p = c if gc >= gd else d
-    g, xd = _objective(x, p, phi, wp, wth, wdr, rp, rxs, rys)
+    g, xd = _objective(x, p, phi, sc)
     dl = 1e-6
-    gm, _ = _objective(x, p - dl, phi, wp, wth, wdr, rp, rxs, rys)
-    gp, _ = _objective(x, p + dl, phi, wp, wth, wdr, rp, rxs, rys)
+    gm, _ = _objective(x, p - dl, phi, sc)
+    gp, _ = _objective(x, p + dl, phi, sc)
     den = gp - 2.0 * g + gm
     if den < 0.0:
         q = p - 0.5 * dl * (gp - gm) / den
         if abs(q - p) < 2.0 * dl:
-            gq, xq = _objective(x, q, phi, wp, wth, wdr, rp, rxs, rys)
+            gq, xq = _objective(x, q, phi, sc)
             if gq > g:
                 p, g, xd = q, gq, xq
     return p, g, xd
@@ -185,16 +195,12 @@ def _refine(
     lo: float,
     hi: float,
     phi: float,
-    wp: NDArray[np.float64],
-    wth: NDArray[np.float64],
-    wdr: NDArray[np.float64],
-    rp: NDArray[np.float64],
-    rxs: NDArray[np.float64],
-    rys: NDArray[np.float64],
+    sc: SearchCase,
 ) -> tuple[float, float, float]:
     """Maximise over ψ in [lo, hi] exactly: split at every corner of either outline inside
     (rail vertices, wheel samples, flat corners), evaluate the corners exactly, and
     golden-search each smooth piece between them."""
+    wp, wth, wdr, rp, rxs = sc.wp, sc.wth, sc.wdr, sc.rp, sc.rxs
     code = int(wp[0])
     R = wp[1]
     rcode = int(rp[0])
@@ -230,8 +236,8 @@ def _refine(
             i += 1
     # rail vertices
     if rcode in (RAIL_SAMPLED, RAIL_STEP):
-        _, xlo = _objective(x, lo, phi, wp, wth, wdr, rp, rxs, rys)
-        _, xhi = _objective(x, hi, phi, wp, wth, wdr, rp, rxs, rys)
+        _, xlo = _objective(x, lo, phi, sc)
+        _, xhi = _objective(x, hi, phi, sc)
         if rcode == RAIL_STEP:
             if xlo < rp[2] < xhi:
                 bp[nb] = _vertex_psi(x, rp[2], 0.5 * (lo + hi), phi, wp, wth, wdr)
@@ -253,7 +259,7 @@ def _refine(
     best_x = x
     for k in range(nb):
         pk = pts[k]
-        g, xd = _objective(x, pk, phi, wp, wth, wdr, rp, rxs, rys)
+        g, xd = _objective(x, pk, phi, sc)
         if rcode == RAIL_STEP and abs(xd - rp[2]) < 1e-9:
             s = math.sin(0.5 * pk)
             dr = wheel_offset(code, R, wp[2], wp[3], wth, wdr, pk + phi)
@@ -261,7 +267,7 @@ def _refine(
         if g > best_g:
             best_g, best_p, best_x = g, pk, xd
         if k + 1 < nb and pts[k + 1] - pk > 1e-12:
-            p, g, xd = _golden(x, pk, pts[k + 1], phi, wp, wth, wdr, rp, rxs, rys)
+            p, g, xd = _golden(x, pk, pts[k + 1], phi, sc)
             if g > best_g:
                 best_g, best_p, best_x = g, p, xd
     return best_p, best_g, best_x
@@ -273,19 +279,15 @@ def _solve(
     phase: float,
     dpsi: float,
     gmax: float,
-    wp: NDArray[np.float64],
-    wth: NDArray[np.float64],
-    wdr: NDArray[np.float64],
-    rp: NDArray[np.float64],
-    rxs: NDArray[np.float64],
-    rys: NDArray[np.float64],
+    sc: SearchCase,
     st: NDArray[np.float64],
 ) -> tuple[float, float, float]:
     """(y_C^k, ψ*, x_D) at wheel position x: windowed grid search, golden refinement, snap."""
+    wp, rp, rxs = sc.wp, sc.rp, sc.rxs
     R = wp[1]
     bulge = wp[4]
     phi = phase + x / R
-    g0, xd0 = _objective(x, 0.0, phi, wp, wth, wdr, rp, rxs, rys)
+    g0, xd0 = _objective(x, 0.0, phi, sc)
     # window: a point at ψ can only win if ymax + bulge - 2R sin²(ψ/2) >= g0
     ymax = gmax
     psimax = 0.0
@@ -305,14 +307,14 @@ def _solve(
     # scan the grid, keep the 3 best local maxima
     kb = np.full(3, -np.inf)
     ki = np.full(3, -1, np.int64)
-    gprev, _ = _objective(x, -psimax, phi, wp, wth, wdr, rp, rxs, rys)
-    gcur, _ = _objective(x, -psimax + h, phi, wp, wth, wdr, rp, rxs, rys)
+    gprev, _ = _objective(x, -psimax, phi, sc)
+    gcur, _ = _objective(x, -psimax + h, phi, sc)
     if gprev >= gcur:
         kb[0] = gprev
         ki[0] = 0
     for i in range(1, n):
         if i + 1 < n:
-            gnext, _ = _objective(x, -psimax + (i + 1) * h, phi, wp, wth, wdr, rp, rxs, rys)
+            gnext, _ = _objective(x, -psimax + (i + 1) * h, phi, sc)
         else:
             gnext = -np.inf
         if gcur >= gprev and gcur >= gnext:
@@ -336,11 +338,11 @@ def _solve(
             continue
         lo = -psimax + max(ki[j] - 2, 0) * h
         hi = -psimax + min(ki[j] + 2, n - 1) * h
-        p, g, xd = _refine(x, lo, hi, phi, wp, wth, wdr, rp, rxs, rys)
+        p, g, xd = _refine(x, lo, hi, phi, sc)
         gi = kb[j]
         if gi > g:
             p = -psimax + ki[j] * h
-            g, xd = _objective(x, p, phi, wp, wth, wdr, rp, rxs, rys)
+            g, xd = _objective(x, p, phi, sc)
         if g > best_g:
             best_g, best_p, best_x = g, p, xd
     return best_g, best_p, best_x
@@ -354,8 +356,8 @@ def _jumpy(d1: float, d2: float) -> bool:
 
 @numba.njit(cache=True)
 def _solve_t(x: float, args: tuple) -> tuple[float, float, float]:
-    phase, dpsi, gmax, wp, wth, wdr, rp, rxs, rys, st = args
-    return _solve(x, phase, dpsi, gmax, wp, wth, wdr, rp, rxs, rys, st)
+    phase, dpsi, gmax, sc, st = args
+    return _solve(x, phase, dpsi, gmax, sc, st)
 
 
 @numba.njit(cache=True)
@@ -577,16 +579,7 @@ def _tabulate_general(
 
 def _general_args(
     wheel: WheelOutline, rail: RailProfile
-) -> tuple[
-    NDArray[np.float64],
-    NDArray[np.float64],
-    NDArray[np.float64],
-    NDArray[np.float64],
-    NDArray[np.float64],
-    NDArray[np.float64],
-    NDArray[np.float64],
-    float,
-]:
+) -> tuple[SearchCase, NDArray[np.float64], float]:
     code, R, a, b, th, dr = wheel.compiled_args()
     wp = np.array([float(code), R, a, b, wheel.max_excess])
     rcode, ra, rb, rxs, rys = rail.compiled_args()
@@ -605,7 +598,7 @@ def _general_args(
     else:
         st = np.zeros((1, 1))
     gmax = rail.height_range[1]
-    return wp, th, dr, rp, rxs, rys, st, gmax
+    return SearchCase(wp, th, dr, rp, rxs, rys), st, gmax
 
 
 def _dpsi(wheel: WheelOutline, rail: RailProfile) -> float:
@@ -630,25 +623,11 @@ def evaluate_exact(
     (1.0, 0.0)
     """
     xq = np.asarray(x, dtype=np.float64)
-    wp, th, dr, rp, rxs, rys, st, gmax = _general_args(wheel, rail)
+    sc, st, gmax = _general_args(wheel, rail)
     dpsi = _dpsi(wheel, rail)
     y = np.empty(xq.shape)
     xd = np.empty(xq.shape)
-    _solve_many(
-        xq.ravel(),
-        float(phase),
-        dpsi,
-        gmax,
-        wp,
-        th,
-        dr,
-        rp,
-        rxs,
-        rys,
-        st,
-        y.reshape(-1),
-        xd.reshape(-1),
-    )
+    _solve_many(xq.ravel(), float(phase), dpsi, gmax, sc, st, y.reshape(-1), xd.reshape(-1))
     return y, xd
 
 
@@ -658,18 +637,13 @@ def _solve_many(
     phase: float,
     dpsi: float,
     gmax: float,
-    wp: NDArray[np.float64],
-    wth: NDArray[np.float64],
-    wdr: NDArray[np.float64],
-    rp: NDArray[np.float64],
-    rxs: NDArray[np.float64],
-    rys: NDArray[np.float64],
+    sc: SearchCase,
     st: NDArray[np.float64],
     y: NDArray[np.float64],
     xd: NDArray[np.float64],
 ) -> None:
     for i in range(xq.size):
-        v, _, d = _solve(xq[i], phase, dpsi, gmax, wp, wth, wdr, rp, rxs, rys, st)
+        v, _, d = _solve(xq[i], phase, dpsi, gmax, sc, st)
         y[i] = v
         xd[i] = d
 
@@ -693,7 +667,7 @@ def tabulate_general(
     elif rail.kind == "cosine" and wheel.kind == "round":
         periodic = rail.wavelength
     x0, x1, nint = stretch(a, b, step, periodic)
-    wp, th, dr, rp, rxs, rys, st, gmax = _general_args(wheel, rail)
-    args = (float(phase), _dpsi(wheel, rail), gmax, wp, th, dr, rp, rxs, rys, st)
+    sc, st, gmax = _general_args(wheel, rail)
+    args = (float(phase), _dpsi(wheel, rail), gmax, sc, st)
     nodes = _tabulate_general(x0, x1, nint, periodic > 0, args)
     return table_from_nodes(nodes, periodic, resolution, step)

@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -89,6 +90,24 @@ __all__ = [
 
 # piece table columns (as in wheel_pieces)
 _T0, _T1, _KIND, _C0, _C1, _CEN, _CONC, _DRMAX = range(8)
+
+
+class PolylineCase(NamedTuple):
+    """A wheel's pieces on a polyline rail, as the compiled sweep reads them."""
+
+    P: NDArray[np.float64]
+    """The piece table (:func:`polyline_pieces`)."""
+    n: int
+    """Pieces per turn."""
+    R: float
+    """Nominal radius (m)."""
+    vx: NDArray[np.float64]
+    """Rail vertices: positions (m)."""
+    vy: NDArray[np.float64]
+    """Rail vertices: heights (m)."""
+    sl: NDArray[np.float64]
+    """Segment slopes."""
+
 
 FT_T, FT_W, FT_V = 0, 1, 2
 """Feature types: piece interior tangent to a segment, wheel vertex on a segment, rail vertex under a piece."""
@@ -300,12 +319,7 @@ def _stationary(
 
 @numba.njit(cache=True)
 def _cell(
-    P: NDArray[np.float64],
-    n: int,
-    R: float,
-    vx: NDArray[np.float64],
-    vy: NDArray[np.float64],
-    sl: NDArray[np.float64],
+    pl: PolylineCase,
     g: int,
     j: int,
     x: float,
@@ -313,6 +327,7 @@ def _cell(
     clip: float,
 ) -> tuple[float, int, int, int, float, float]:
     """max of G over cell (piece g, segment j) at x: (value, type, g, r, slope, x_D); type -1 if empty."""
+    P, n, R, vx, vy, sl = pl.P, pl.n, pl.R, pl.vx, pl.vy, pl.sl
     k, sh = _shift(g, n)
     a = max(P[k, _T0] + sh - phi, -clip)
     b = min(P[k, _T1] + sh - phi, clip)
@@ -385,12 +400,7 @@ def _cells_of(t: int, g: int, r: int, out: NDArray[np.int64], m: int) -> int:
 
 @numba.njit(cache=True)
 def _chord_max(
-    P: NDArray[np.float64],
-    n: int,
-    R: float,
-    vx: NDArray[np.float64],
-    vy: NDArray[np.float64],
-    sl: NDArray[np.float64],
+    pl: PolylineCase,
     g: int,
     x: float,
     phi: float,
@@ -404,6 +414,7 @@ def _chord_max(
     the rail vertices under it is y_i + dr(c) + u·tan c (c the chord's tilt), a loop of a
     multiply-add per vertex; its ends (wheel vertices) are evaluated on their segments.
     """
+    P, n, R, vx, vy, sl = pl.P, pl.n, pl.R, pl.vx, pl.vy, pl.sl
     k, sh = _shift(g, n)
     c = phi - sh - P[k, _CEN]
     dr0, _, _ = _rho(P, k, R, c + P[k, _CEN])
@@ -448,12 +459,7 @@ def _chord_max(
 
 @numba.njit(cache=True)
 def _global(
-    P: NDArray[np.float64],
-    n: int,
-    R: float,
-    vx: NDArray[np.float64],
-    vy: NDArray[np.float64],
-    sl: NDArray[np.float64],
+    pl: PolylineCase,
     ymax: float,
     drg: float,
     phase: float,
@@ -468,10 +474,11 @@ def _global(
     The cells under the centre and those of the feature (seed_t, seed_g, seed_r) (the
     winner nearby, if seed_t >= 0) set the first bound: the window and the pruning follow.
     """
+    P, n, R, vx, vy = pl.P, pl.n, pl.R, pl.vx, pl.vy
     phi = phase + x / R
     g0 = _piece_of(P, n, phi, hint)
     j0 = _seg_of(vx, x)
-    best, bt, bg, br, bs, bx = _cell(P, n, R, vx, vy, sl, g0, j0, x, phi, CLIP)
+    best, bt, bg, br, bs, bx = _cell(pl, g0, j0, x, phi, CLIP)
     if seed_t >= 0:
         seeds = np.empty((2, 2), np.int64)
         ns = _cells_of(seed_t, seed_g, seed_r, seeds, 0)
@@ -479,7 +486,7 @@ def _global(
         for c in range(ns):
             j = seeds[c, 1]
             if 0 <= j <= last:
-                v, t, gg, r, s, xd = _cell(P, n, R, vx, vy, sl, seeds[c, 0], j, x, phi, CLIP)
+                v, t, gg, r, s, xd = _cell(pl, seeds[c, 0], j, x, phi, CLIP)
                 if t >= 0 and v > best:
                     best, bt, bg, br, bs, bx = v, t, gg, r, s, xd
     # the window of ψ that can win
@@ -507,7 +514,7 @@ def _global(
         if ymax + top - _drop_lb(pmin, R) < best:
             continue
         if int(P[k, _KIND]) == PIECE_CHORD:
-            v, t, gg, r, s, xd = _chord_max(P, n, R, vx, vy, sl, g, x, phi, a, b, psw)
+            v, t, gg, r, s, xd = _chord_max(pl, g, x, phi, a, b, psw)
             if v > best:
                 best, bt, bg, br, bs, bx = v, t, gg, r, s, xd
             continue
@@ -550,7 +557,7 @@ def _global(
                 )
                 if bound2 < best:
                     continue
-            v, t, gg, r, s, xd = _cell(P, n, R, vx, vy, sl, g, j, x, phi, psw)
+            v, t, gg, r, s, xd = _cell(pl, g, j, x, phi, psw)
             if v > best:
                 best, bt, bg, br, bs, bx = v, t, gg, r, s, xd
     return best, bt, bg, br, bs, bx, g0
@@ -558,18 +565,14 @@ def _global(
 
 @numba.njit(cache=True)
 def _restricted(
-    P: NDArray[np.float64],
-    n: int,
-    R: float,
-    vx: NDArray[np.float64],
-    vy: NDArray[np.float64],
-    sl: NDArray[np.float64],
+    pl: PolylineCase,
     phase: float,
     cells: NDArray[np.int64],
     nc: int,
     x: float,
 ) -> tuple[float, int, int, int, float, float]:
     """The best feature among the listed cells at x."""
+    R, vx = pl.R, pl.vx
     phi = phase + x / R
     best = -np.inf
     bt = bg = br = -1
@@ -579,7 +582,7 @@ def _restricted(
         j = cells[c, 1]
         if j < 0 or j > last:
             continue
-        v, t, gg, r, s, xd = _cell(P, n, R, vx, vy, sl, cells[c, 0], j, x, phi, CLIP)
+        v, t, gg, r, s, xd = _cell(pl, cells[c, 0], j, x, phi, CLIP)
         if t >= 0 and v > best:
             best, bt, bg, br, bs, bx = v, t, gg, r, s, xd
     return best, bt, bg, br, bs, bx
@@ -587,12 +590,7 @@ def _restricted(
 
 @numba.njit(cache=True)
 def _feature_eval(
-    P: NDArray[np.float64],
-    n: int,
-    R: float,
-    vx: NDArray[np.float64],
-    vy: NDArray[np.float64],
-    sl: NDArray[np.float64],
+    pl: PolylineCase,
     phase: float,
     t: int,
     g: int,
@@ -602,6 +600,7 @@ def _feature_eval(
     """(value, slope, x_D) of feature (t, g, r) at x by its own formula; value -inf where the
     feature is not a real contact candidate (its wheel point off the piece, its rail point off
     the segment), so that it never exceeds y_C^k."""
+    P, n, R, vx, vy, sl = pl.P, pl.n, pl.R, pl.vx, pl.vy, pl.sl
     phi = phase + x / R
     k, sh = _shift(g, n)
     if t == FT_W:
@@ -658,6 +657,7 @@ def sweep_kernel(
 ) -> NDArray[np.float64]:
     """Node rows (:mod:`sim_core.constraint.nodes`) over [x0, x1], sorted by x."""
     n = P.shape[0]
+    pl = PolylineCase(P, n, R, vx, vy, sl)
     ymax = vy.max()
     drg = max(P[:, _DRMAX].max(), 0.0)
     nodes = np.zeros((2 * nint + 64, NCOL))
@@ -669,7 +669,7 @@ def sweep_kernel(
     pt, pg, pr = -1, 0, 0
     for i in range(nint + 1):
         xv = x0 + i * h0 if i < nint else x1
-        v, t, g, r, s, xd, g0 = _global(P, n, R, vx, vy, sl, ymax, drg, phase, xv, hint, pt, pg, pr)
+        v, t, g, r, s, xd, g0 = _global(pl, ymax, drg, phase, xv, hint, pt, pg, pr)
         pt, pg, pr = t, g, r
         hint = g0
         nodes[nn, X] = xv
@@ -713,12 +713,12 @@ def sweep_kernel(
         da = db = 0.0
         if not same:
             da = (
-                _feature_eval(P, n, R, vx, vy, sl, phase, tA, gA, rA, xa)[0]
-                - _feature_eval(P, n, R, vx, vy, sl, phase, tB, gB, rB, xa)[0]
+                _feature_eval(pl, phase, tA, gA, rA, xa)[0]
+                - _feature_eval(pl, phase, tB, gB, rB, xa)[0]
             )
             db = (
-                _feature_eval(P, n, R, vx, vy, sl, phase, tA, gA, rA, xb)[0]
-                - _feature_eval(P, n, R, vx, vy, sl, phase, tB, gB, rB, xb)[0]
+                _feature_eval(pl, phase, tA, gA, rA, xb)[0]
+                - _feature_eval(pl, phase, tB, gB, rB, xb)[0]
             )
             # two features within the tolerance of each other over the whole interval (a wheel
             # corner creeping over a rail vertex): where one hands over is immaterial
@@ -737,8 +737,8 @@ def sweep_kernel(
                 if m <= lo or m >= hi:
                     break
                 dm = (
-                    _feature_eval(P, n, R, vx, vy, sl, phase, tA, gA, rA, m)[0]
-                    - _feature_eval(P, n, R, vx, vy, sl, phase, tB, gB, rB, m)[0]
+                    _feature_eval(pl, phase, tA, gA, rA, m)[0]
+                    - _feature_eval(pl, phase, tB, gB, rB, m)[0]
                 )
                 if dm > 0.0:
                     lo = m
@@ -752,7 +752,7 @@ def sweep_kernel(
                 m = 0.5 * (lo + hi)
                 if m <= lo or m >= hi:
                     break
-                _, t, g, r, _, _ = _restricted(P, n, R, vx, vy, sl, phase, cells, nc, m)
+                _, t, g, r, _, _ = _restricted(pl, phase, cells, nc, m)
                 if t == tA and g == gA and r == rA:
                     lo = m
                 elif t == tB and g == gB and r == rB:
@@ -763,11 +763,9 @@ def sweep_kernel(
                     break
             if not third:
                 xs = 0.5 * (lo + hi)
-                va, sa, _ = _feature_eval(P, n, R, vx, vy, sl, phase, tA, gA, rA, xs)
-                vb, sb, xdb = _feature_eval(P, n, R, vx, vy, sl, phase, tB, gB, rB, xs)
-                vg, tg, gg, rg, _, _, _ = _global(
-                    P, n, R, vx, vy, sl, ymax, drg, phase, xs, hint, tA, gA, rA
-                )
+                va, sa, _ = _feature_eval(pl, phase, tA, gA, rA, xs)
+                vb, sb, xdb = _feature_eval(pl, phase, tB, gB, rB, xs)
+                vg, tg, gg, rg, _, _, _ = _global(pl, ymax, drg, phase, xs, hint, tA, gA, rA)
                 top = max(va, vb)
                 isab = (tg == tA and gg == gA and rg == rA) or (tg == tB and gg == gB and rg == rB)
                 valid = va > -np.inf and vb > -np.inf
@@ -829,9 +827,7 @@ def sweep_kernel(
             xn = 0.5 * (xa + xb)
             if hlen <= 1.6e-12 * scale:
                 continue
-        vg, tg, gg, rg, sg, xdg, g0 = _global(
-            P, n, R, vx, vy, sl, ymax, drg, phase, xn, hint, tA, gA, rA
-        )
+        vg, tg, gg, rg, sg, xdg, g0 = _global(pl, ymax, drg, phase, xn, hint, tA, gA, rA)
         if not split:
             hm = 0.5 * (nodes[ia, V] + nodes[ib, V]) + 0.125 * hlen * (
                 nodes[ia, SR] - nodes[ib, SL]
@@ -840,7 +836,7 @@ def sweep_kernel(
                 if tg == tA and gg == gA and rg == rA:
                     continue
                 # another feature at the midpoint: a split unless it only ties with A
-                fa = _feature_eval(P, n, R, vx, vy, sl, phase, tA, gA, rA, xn)[0]
+                fa = _feature_eval(pl, phase, tA, gA, rA, xn)[0]
                 if vg <= fa + hermite_tol:
                     continue
         if not (xa < xn < xb):

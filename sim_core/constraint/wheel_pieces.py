@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -79,6 +80,24 @@ PIECE_ARC = 3
 
 TIE = 1e-18
 """Values (m) of two features closer than this are a tie (the change is at that end)."""
+
+
+class PiecesCase(NamedTuple):
+    """A wheel's piece table on a smooth rail, as the compiled sweep reads it."""
+
+    P: NDArray[np.float64]
+    """The piece table (:func:`wheel_pieces`)."""
+    n: int
+    """Pieces per turn."""
+    R: float
+    """Nominal radius (m)."""
+    rc: int
+    """Rail code (flat or cosine)."""
+    ra: float
+    """Rail amplitude (m)."""
+    rl: float
+    """Rail wavelength (m)."""
+
 
 # columns of the piece table
 _T0, _T1, _KIND, _C0, _C1, _CEN, _CONC, _DRMAX = range(8)
@@ -271,17 +290,13 @@ def _slope_vertex(R: float, psi: float, dr: float, y1: float) -> float:
 
 @numba.njit(cache=True)
 def _vertex(
-    P: NDArray[np.float64],
-    n: int,
-    R: float,
-    rc: int,
-    ra: float,
-    rl: float,
+    pc: PiecesCase,
     v: int,
     x: float,
     phi: float,
 ) -> tuple[float, float, float]:
     """(value, slope, x_D) of vertex feature v = 2g + 1 (the hi end of piece g) at x."""
+    P, n, R, rc, ra, rl = pc.P, pc.n, pc.R, pc.rc, pc.ra, pc.rl
     g = (v - 1) // 2
     k, sh = _shift(g, n)
     u = P[k, _T1]
@@ -292,12 +307,7 @@ def _vertex(
 
 @numba.njit(cache=True)
 def _interior(
-    P: NDArray[np.float64],
-    n: int,
-    R: float,
-    rc: int,
-    ra: float,
-    rl: float,
+    pc: PiecesCase,
     g: int,
     x: float,
     phi: float,
@@ -305,6 +315,7 @@ def _interior(
     hi: float,
 ) -> tuple[float, float, float, float]:
     """(value, slope, x_D, ψ) at the root of G' of piece g in (lo, hi) (G'(lo) > 0 > G'(hi)); safeguarded Newton."""
+    P, n, R, rc, ra, rl = pc.P, pc.n, pc.R, pc.rc, pc.ra, pc.rl
     k, sh = _shift(g, n)
     a, b = lo, hi
     psi = 0.5 * (lo + hi)
@@ -331,17 +342,13 @@ def _interior(
 
 @numba.njit(cache=True)
 def _pmax(
-    P: NDArray[np.float64],
-    n: int,
-    R: float,
-    rc: int,
-    ra: float,
-    rl: float,
+    pc: PiecesCase,
     g: int,
     x: float,
     phi: float,
 ) -> tuple[float, int, float, float]:
     """(max over piece g, feature, slope, x_D) at x."""
+    P, n, R, rc, ra, rl = pc.P, pc.n, pc.R, pc.rc, pc.ra, pc.rl
     k, sh = _shift(g, n)
     u0 = P[k, _T0]
     u1 = P[k, _T1]
@@ -377,7 +384,7 @@ def _pmax(
         if G0 >= G1:
             return G0, 2 * g - 1, _slope_vertex(R, lo, dr0, y10), xd0
         return G1, 2 * g + 1, _slope_vertex(R, hi, dr1, y11), xd1
-    G, s, xd, _ = _interior(P, n, R, rc, ra, rl, g, x, phi, lo, hi)
+    G, s, xd, _ = _interior(pc, g, x, phi, lo, hi)
     return G, 2 * g, s, xd
 
 
@@ -405,22 +412,18 @@ def _drop(psi: float, R: float) -> float:
 
 @numba.njit(cache=True)
 def _global(
-    P: NDArray[np.float64],
-    n: int,
-    R: float,
-    rc: int,
-    ra: float,
-    rl: float,
+    pc: PiecesCase,
     phase: float,
     drg: float,
     x: float,
     hint: int,
 ) -> tuple[float, int, float, float, int]:
     """(y_C^k, feature, slope, x_D, piece under the centre) at x: all pieces that can win."""
+    P, n, R, rc, ra = pc.P, pc.n, pc.R, pc.rc, pc.ra
     phi = phase + x / R
     g0 = _piece_of(P, n, phi, hint)
     ymax = abs(ra) if rc == RAIL_COSINE else 0.0
-    best, bf, bs, bx = _pmax(P, n, R, rc, ra, rl, g0, x, phi)
+    best, bf, bs, bx = _pmax(pc, g0, x, phi)
     for direction in (1, -1):
         g = g0 + direction
         for _ in range(n):
@@ -434,7 +437,7 @@ def _global(
             dm = P[k, _DRMAX]
             top = dm if dm >= 0.0 else 0.5 * dm
             if ymax + top - dp >= best:
-                v, f, s, xd = _pmax(P, n, R, rc, ra, rl, g, x, phi)
+                v, f, s, xd = _pmax(pc, g, x, phi)
                 if v > best:
                     best, bf, bs, bx = v, f, s, xd
             g += direction
@@ -443,12 +446,7 @@ def _global(
 
 @numba.njit(cache=True)
 def _feature(
-    P: NDArray[np.float64],
-    n: int,
-    R: float,
-    rc: int,
-    ra: float,
-    rl: float,
+    pc: PiecesCase,
     phase: float,
     f: int,
     x: float,
@@ -458,13 +456,14 @@ def _feature(
     A vertex's group is its two pieces, an interior's group its piece: the maximum over the
     group (continuous and piecewise smooth in x), with the feature that attains it.
     """
+    R = pc.R
     phi = phase + x / R
     if f % 2 == 0:
-        v, ff, s, xd = _pmax(P, n, R, rc, ra, rl, f // 2, x, phi)
+        v, ff, s, xd = _pmax(pc, f // 2, x, phi)
         return v, s, xd, ff
     g = (f - 1) // 2
-    v, ff, s, xd = _pmax(P, n, R, rc, ra, rl, g, x, phi)
-    v2, f2, s2, xd2 = _pmax(P, n, R, rc, ra, rl, g + 1, x, phi)
+    v, ff, s, xd = _pmax(pc, g, x, phi)
+    v2, f2, s2, xd2 = _pmax(pc, g + 1, x, phi)
     if v2 > v:
         return v2, s2, xd2, f2
     return v, s, xd, ff
@@ -472,18 +471,14 @@ def _feature(
 
 @numba.njit(cache=True)
 def _edge_dg(
-    P: NDArray[np.float64],
-    n: int,
-    R: float,
-    rc: int,
-    ra: float,
-    rl: float,
+    pc: PiecesCase,
     phase: float,
     g: int,
     hi_end: bool,
     x: float,
 ) -> float:
     """G' of piece g at its end (hi or lo) at x: the interior ↔ end vertex handover is its root."""
+    P, n, R, rc, ra, rl = pc.P, pc.n, pc.R, pc.rc, pc.ra, pc.rl
     phi = phase + x / R
     k, sh = _shift(g, n)
     u = P[k, _T1] if hi_end else P[k, _T0]
@@ -493,12 +488,7 @@ def _edge_dg(
 
 @numba.njit(cache=True)
 def _root_edge(
-    P: NDArray[np.float64],
-    n: int,
-    R: float,
-    rc: int,
-    ra: float,
-    rl: float,
+    pc: PiecesCase,
     phase: float,
     g: int,
     hi_end: bool,
@@ -506,6 +496,7 @@ def _root_edge(
     xb: float,
 ) -> float:
     """Root of :func:`_edge_dg` in [xa, xb] (Illinois false position, then bisection); nan if no sign change."""
+    P, n, R, rc = pc.P, pc.n, pc.R, pc.rc
     k, sh = _shift(g, n)
     if rc == RAIL_FLAT and int(P[k, _KIND]) == PIECE_LINEAR:
         # G' = b cos ψ - ρ sin ψ = 0: ψ = atan(b/ρ) at the vertex, φ = θ_v - ψ
@@ -514,8 +505,8 @@ def _root_edge(
         xt = R * (u + sh - math.atan2(P[k, _C1], R + dr) - phase)
         if xa <= xt <= xb:
             return xt
-    fa = _edge_dg(P, n, R, rc, ra, rl, phase, g, hi_end, xa)
-    fb = _edge_dg(P, n, R, rc, ra, rl, phase, g, hi_end, xb)
+    fa = _edge_dg(pc, phase, g, hi_end, xa)
+    fb = _edge_dg(pc, phase, g, hi_end, xb)
     if fa == 0.0:
         return xa
     if fb == 0.0:
@@ -530,7 +521,7 @@ def _root_edge(
         m = (a * fb - b * fa) / (fb - fa)
         if not (a < m < b):
             m = 0.5 * (a + b)
-        fm = _edge_dg(P, n, R, rc, ra, rl, phase, g, hi_end, m)
+        fm = _edge_dg(pc, phase, g, hi_end, m)
         if fm == 0.0:
             return m
         if (fm > 0.0) == (fa > 0.0):
@@ -548,12 +539,7 @@ def _root_edge(
 
 @numba.njit(cache=True)
 def _root_cross(
-    P: NDArray[np.float64],
-    n: int,
-    R: float,
-    rc: int,
-    ra: float,
-    rl: float,
+    pc: PiecesCase,
     phase: float,
     fA: int,
     fB: int,
@@ -561,14 +547,8 @@ def _root_cross(
     xb: float,
 ) -> float:
     """Where feature group B overtakes group A in [xa, xb]; nan if the difference keeps its sign."""
-    va = (
-        _feature(P, n, R, rc, ra, rl, phase, fA, xa)[0]
-        - _feature(P, n, R, rc, ra, rl, phase, fB, xa)[0]
-    )
-    vb = (
-        _feature(P, n, R, rc, ra, rl, phase, fA, xb)[0]
-        - _feature(P, n, R, rc, ra, rl, phase, fB, xb)[0]
-    )
+    va = _feature(pc, phase, fA, xa)[0] - _feature(pc, phase, fB, xa)[0]
+    vb = _feature(pc, phase, fA, xb)[0] - _feature(pc, phase, fB, xb)[0]
     if va <= TIE:
         return xa if va >= -TIE else math.nan
     if vb >= -TIE:
@@ -578,8 +558,8 @@ def _root_cross(
     for _ in range(100):
         if not (a < m < b):
             m = 0.5 * (a + b)
-        fa_ = _feature(P, n, R, rc, ra, rl, phase, fA, m)
-        fb_ = _feature(P, n, R, rc, ra, rl, phase, fB, m)
+        fa_ = _feature(pc, phase, fA, m)
+        fb_ = _feature(pc, phase, fB, m)
         vm = fa_[0] - fb_[0]
         if vm == 0.0:
             return m
@@ -613,6 +593,7 @@ def tabulate_pieces_kernel(
 ) -> NDArray[np.float64]:
     """Node rows (:mod:`sim_core.constraint.nodes`) over [x0, x1], sorted by x."""
     n = P.shape[0]
+    pc = PiecesCase(P, n, R, rc, ra, rl)
     drg = P[:, _DRMAX].max()
     nodes = np.zeros((4 * nint + 64, NCOL))
     feats = np.empty((4 * nint + 64, 3), np.int64)  # feature left, feature right, piece hint
@@ -622,7 +603,7 @@ def tabulate_pieces_kernel(
     # ---------------------------------------------------------------- grid
     for i in range(nint + 1):
         xv = x0 + i * h0 if i < nint else x1
-        v, f, s, xd, g0 = _global(P, n, R, rc, ra, rl, phase, drg, xv, hint)
+        v, f, s, xd, g0 = _global(pc, phase, drg, xv, hint)
         hint = g0
         nodes[nn, X] = xv
         nodes[nn, V] = v
@@ -668,21 +649,21 @@ def tabulate_pieces_kernel(
                 # tangent handover between a piece's interior and its end vertex
                 g = fA // 2 if fA % 2 == 0 else fB // 2
                 vtx = fB if fA % 2 == 0 else fA
-                xt = _root_edge(P, n, R, rc, ra, rl, phase, g, vtx == 2 * g + 1, xa, xb)
+                xt = _root_edge(pc, phase, g, vtx == 2 * g + 1, xa, xb)
                 if not math.isnan(xt):
-                    vv, ss, xdv = _vertex(P, n, R, rc, ra, rl, vtx, xt, phase + xt / R)
-                    vg, fg, sg, xdg, g0 = _global(P, n, R, rc, ra, rl, phase, drg, xt, hint)
+                    vv, ss, xdv = _vertex(pc, vtx, xt, phase + xt / R)
+                    vg, fg, sg, xdg, g0 = _global(pc, phase, drg, xt, hint)
                     if fg != fA and fg != fB and vg > vv + 1e-15:
                         xn, vn, sl, sr, xdn, fl, fr = xt, vg, sg, sg, xdg, fg, fg
                     else:
                         xn, vn, sl, sr, xdn, fl, fr = xt, vv, ss, ss, xdv, fA, fB
                     hint = g0
             if math.isnan(xn):
-                xt = _root_cross(P, n, R, rc, ra, rl, phase, fA, fB, xa, xb)
+                xt = _root_cross(pc, phase, fA, fB, xa, xb)
                 if not math.isnan(xt):
-                    va, sa, _, ffa = _feature(P, n, R, rc, ra, rl, phase, fA, xt)
-                    vb, sb, xdb, ffb = _feature(P, n, R, rc, ra, rl, phase, fB, xt)
-                    vg, fg, sg, xdg, g0 = _global(P, n, R, rc, ra, rl, phase, drg, xt, hint)
+                    va, sa, _, ffa = _feature(pc, phase, fA, xt)
+                    vb, sb, xdb, ffb = _feature(pc, phase, fB, xt)
+                    vg, fg, sg, xdg, g0 = _global(pc, phase, drg, xt, hint)
                     hint = g0
                     top = max(va, vb)
                     if fg != ffa and fg != ffb and vg > top + 1e-15:
@@ -719,11 +700,11 @@ def tabulate_pieces_kernel(
                     continue
                 # no closed-form change found: split at the midpoint
                 xn = 0.5 * (xa + xb)
-                vg, fg, sg, xdg, g0 = _global(P, n, R, rc, ra, rl, phase, drg, xn, hint)
+                vg, fg, sg, xdg, g0 = _global(pc, phase, drg, xn, hint)
                 vn, sl, sr, xdn, fl, fr, kn, hint = vg, sg, sg, xdg, fg, fg, 0.0, g0
         elif h > 4.0 * 4e-13 * scale:
             m = 0.5 * (xa + xb)
-            vg, fg, sg, xdg, g0 = _global(P, n, R, rc, ra, rl, phase, drg, m, hint)
+            vg, fg, sg, xdg, g0 = _global(pc, phase, drg, m, hint)
             hm = 0.5 * (nodes[ia, V] + nodes[ib, V]) + 0.125 * h * (nodes[ia, SR] - nodes[ib, SL])
             if fg != fA or abs(vg - hm) > hermite_tol:
                 xn, vn, sl, sr, xdn, fl, fr, hint = m, vg, sg, sg, xdg, fg, fg, g0
