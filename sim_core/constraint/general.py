@@ -51,6 +51,7 @@ from sim_core.constraint.nodes import (
     stretch,
     table_from_nodes,
 )
+from sim_core.constraint.roots import bisect
 from sim_core.constraint.table import ConstraintTable
 from sim_core.rail import RAIL_SAMPLED, RAIL_STEP, RailProfile, rail_height
 from sim_core.wheel import (
@@ -365,19 +366,17 @@ def _locate(
     lo: float, hi: float, plo: float, glo: float, phi_: float, ghi: float, args: tuple
 ) -> float:
     """Bisection for a kink in (lo, hi): classify ψ at the midpoint against the two branches."""
-    xl, xh = lo, hi
-    for _ in range(200):
-        if xh - xl <= 1e-13 * max(1.0, abs(xl)):
-            break
-        m = 0.5 * (xl + xh)
-        _, pm, _ = _solve_t(m, args)
-        da = abs(pm - (plo + glo * (m - lo)))
-        db = abs(pm - (phi_ + ghi * (m - hi)))
-        if da <= db:
-            xl = m
-        else:
-            xh = m
-    return 0.5 * (xl + xh)
+    return bisect(_on_left_branch, lo, hi, (lo, plo, glo, hi, phi_, ghi, args), 1e-13)
+
+
+@numba.njit(cache=True)
+def _on_left_branch(m: float, branches: tuple) -> bool:
+    """True if ψ at m is nearer the left branch (ψ = plo + glo·(m - lo)) than the right."""
+    lo, plo, glo, hi, phi_, ghi, args = branches
+    _, pm, _ = _solve_t(m, args)
+    da = abs(pm - (plo + glo * (m - lo)))
+    db = abs(pm - (phi_ + ghi * (m - hi)))
+    return da <= db
 
 
 @numba.njit(cache=True)

@@ -64,6 +64,7 @@ from sim_core.constraint.nodes import (
     table_from_nodes,
 )
 from sim_core.constraint.rail_polyline import RailPolyline, rail_polyline
+from sim_core.constraint.roots import newton_max
 from sim_core.constraint.round_polyline import poly_points, round_nodes
 from sim_core.constraint.table import ConstraintTable
 from sim_core.constraint.wheel_pieces import (
@@ -258,6 +259,16 @@ def _g_line(
     return g, gp, gpp, xd, dr, r1
 
 
+@numba.njit(cache=True)
+def _g_line_at(
+    psi: float,
+    args: tuple[NDArray[np.float64], int, float, float, float, float, float, float, float],
+) -> tuple[float, float, float, float, float, float]:
+    """:func:`_g_line` at ψ for args = (P, k, turn shift, R, x, φ, x_j, y_j, s), for the solvers."""
+    P, k, sh, R, x, phi, xj, yj, s = args
+    return _g_line(P, k, sh, R, x, phi, psi, xj, yj, s)
+
+
 @numba.njit(cache=True, inline="always")
 def _slope_tangent(R: float, psi: float, r1: float, s: float) -> float:
     return s * (1.0 + r1 * math.sin(psi) / R) + r1 * math.cos(psi) / R
@@ -297,23 +308,9 @@ def _stationary(
         psi = math.atan(s)
         g, _, _, xd, _, r1 = _g_line(P, k, sh, R, x, phi, psi, xj, yj, s)
         return g, psi, xd, r1
-    a, b = lo, hi
-    psi = 0.5 * (lo + hi)
-    g, gp, gpp, xd, _, r1 = _g_line(P, k, sh, R, x, phi, psi, xj, yj, s)
-    for _ in range(60):
-        if gp > 0.0:
-            a = psi
-        else:
-            b = psi
-        nxt = psi - gp / gpp if gpp < 0.0 else 0.5 * (a + b)
-        if not (a < nxt < b):
-            nxt = 0.5 * (a + b)
-        # a Newton step of 1e-9 rad leaves ~1e-18 rad (quadratic convergence)
-        done = (gpp < 0.0 and abs(nxt - psi) <= 1e-9) or b - a <= 4e-16
-        psi = nxt
-        g, gp, gpp, xd, _, r1 = _g_line(P, k, sh, R, x, phi, psi, xj, yj, s)
-        if done or gp == 0.0:
-            break
+    # a Newton step of 1e-9 rad leaves ~1e-18 rad (quadratic convergence)
+    psi, out = newton_max(_g_line_at, lo, hi, (P, k, sh, R, x, phi, xj, yj, s), 1e-9, 0.0, True)
+    g, _, _, xd, _, r1 = out
     return g, psi, xd, r1
 
 

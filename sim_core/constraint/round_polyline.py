@@ -43,6 +43,7 @@ from sim_core.constraint.nodes import (
     table_from_nodes,
 )
 from sim_core.constraint.rail_polyline import PerRailCache, rail_polyline
+from sim_core.constraint.roots import bisect
 from sim_core.constraint.table import ConstraintTable
 from sim_core.rail import RailProfile
 
@@ -153,18 +154,18 @@ def _crossing(
     a: float, b: float, pa: int, pb: int, R: float, vx: NDArray[np.float64], vy: NDArray[np.float64]
 ) -> float:
     """Where piece pb overtakes pa in [a, b] (bisection to the last bit)."""
-    lo, hi = a, b
-    for _ in range(200):
-        m = 0.5 * (lo + hi)
-        if m <= lo or m >= hi:
-            break
-        va, _, _ = _piece(_eff(pa, m, R, vx, vy), m, R, vx, vy)
-        vb, _, _ = _piece(_eff(pb, m, R, vx, vy), m, R, vx, vy)
-        if va >= vb:
-            lo = m
-        else:
-            hi = m
-    return 0.5 * (lo + hi)
+    return bisect(_first_on_top, a, b, (pa, pb, R, vx, vy), 0.0)
+
+
+@numba.njit(cache=True)
+def _first_on_top(
+    m: float, args: tuple[int, int, float, NDArray[np.float64], NDArray[np.float64]]
+) -> bool:
+    """True if piece pa is (still) at or above pb at m; args = (pa, pb, R, vx, vy)."""
+    pa, pb, R, vx, vy = args
+    va, _, _ = _piece(_eff(pa, m, R, vx, vy), m, R, vx, vy)
+    vb, _, _ = _piece(_eff(pb, m, R, vx, vy), m, R, vx, vy)
+    return va >= vb
 
 
 @numba.njit(cache=True)

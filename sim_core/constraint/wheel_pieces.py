@@ -58,6 +58,7 @@ from sim_core.constraint.nodes import (
     stretch,
     table_from_nodes,
 )
+from sim_core.constraint.roots import illinois, newton_max
 from sim_core.constraint.table import ConstraintTable
 from sim_core.rail import RAIL_COSINE, RAIL_FLAT, RailProfile
 from sim_core.wheel import TWO_PI, WheelOutline
@@ -277,6 +278,15 @@ def _obj(
     return g, gp, gpp, xd, dr, r1, y1
 
 
+@numba.njit(cache=True)
+def _obj_at(
+    psi: float, args: tuple[NDArray[np.float64], int, float, int, float, float, float, float, float]
+) -> tuple[float, float, float, float, float, float, float]:
+    """:func:`_obj` at ψ for args = (P, k, R, rc, ra, rl, x, φ, turn shift), for the solvers."""
+    P, k, R, rc, ra, rl, x, phi, sh = args
+    return _obj(P, k, R, rc, ra, rl, x, psi, psi + phi - sh)
+
+
 @numba.njit(cache=True, inline="always")
 def _slope_interior(R: float, psi: float, r1: float, y1: float) -> float:
     return y1 * (1.0 + r1 * math.sin(psi) / R) + r1 * math.cos(psi) / R
@@ -317,26 +327,9 @@ def _interior(
     """(value, slope, x_D, ψ) at the root of G' of piece g in (lo, hi) (G'(lo) > 0 > G'(hi)); safeguarded Newton."""
     P, n, R, rc, ra, rl = pc.P, pc.n, pc.R, pc.rc, pc.ra, pc.rl
     k, sh = _shift(g, n)
-    a, b = lo, hi
-    psi = 0.5 * (lo + hi)
-    # the outline is nearly round: G'' ≈ -R; start from the tangent estimate
-    G, gp, gpp, xd, _dr, r1, y1 = _obj(P, k, R, rc, ra, rl, x, psi, psi + phi - sh)
-    for _ in range(60):
-        if gp > 0.0:
-            a = psi
-        else:
-            b = psi
-        nxt = psi - gp / gpp if gpp < 0.0 else 0.5 * (a + b)
-        if not (a < nxt < b):
-            nxt = 0.5 * (a + b)
-        if abs(nxt - psi) <= 1e-16 * (1.0 + abs(psi)) or b - a <= 4e-16:
-            psi = nxt
-            G, gp, gpp, xd, _dr, r1, y1 = _obj(P, k, R, rc, ra, rl, x, psi, psi + phi - sh)
-            break
-        psi = nxt
-        G, gp, gpp, xd, _dr, r1, y1 = _obj(P, k, R, rc, ra, rl, x, psi, psi + phi - sh)
-        if gp == 0.0:
-            break
+    # Newton steps to 1e-16 relative (the outline is nearly round: G'' ≈ -R)
+    psi, out = newton_max(_obj_at, lo, hi, (P, k, R, rc, ra, rl, x, phi, sh), 1e-16, 1e-16, False)
+    G, _, _, xd, _, r1, y1 = out
     return G, _slope_interior(R, psi, r1, y1), xd, psi
 
 
@@ -470,14 +463,10 @@ def _feature(
 
 
 @numba.njit(cache=True)
-def _edge_dg(
-    pc: PiecesCase,
-    phase: float,
-    g: int,
-    hi_end: bool,
-    x: float,
-) -> float:
-    """G' of piece g at its end (hi or lo) at x: the interior ↔ end vertex handover is its root."""
+def _edge_dg(x: float, args: tuple[PiecesCase, float, int, bool]) -> float:
+    """G' of piece g at its end (hi or lo) at x, args = (pieces, phase, g, hi end): the
+    interior ↔ end vertex handover is its root."""
+    pc, phase, g, hi_end = args
     P, n, R, rc, ra, rl = pc.P, pc.n, pc.R, pc.rc, pc.ra, pc.rl
     phi = phase + x / R
     k, sh = _shift(g, n)
@@ -495,7 +484,7 @@ def _root_edge(
     xa: float,
     xb: float,
 ) -> float:
-    """Root of :func:`_edge_dg` in [xa, xb] (Illinois false position, then bisection); nan if no sign change."""
+    """Root of :func:`_edge_dg` in [xa, xb] (closed form on a flat rail, else Illinois); nan if no sign change."""
     P, n, R, rc = pc.P, pc.n, pc.R, pc.rc
     k, sh = _shift(g, n)
     if rc == RAIL_FLAT and int(P[k, _KIND]) == PIECE_LINEAR:
@@ -505,36 +494,7 @@ def _root_edge(
         xt = R * (u + sh - math.atan2(P[k, _C1], R + dr) - phase)
         if xa <= xt <= xb:
             return xt
-    fa = _edge_dg(pc, phase, g, hi_end, xa)
-    fb = _edge_dg(pc, phase, g, hi_end, xb)
-    if fa == 0.0:
-        return xa
-    if fb == 0.0:
-        return xb
-    if (fa > 0.0) == (fb > 0.0):
-        return math.nan
-    a, b = xa, xb
-    side = 0
-    for _ in range(200):
-        if b - a <= 2e-16 * max(1.0, abs(a)):
-            break
-        m = (a * fb - b * fa) / (fb - fa)
-        if not (a < m < b):
-            m = 0.5 * (a + b)
-        fm = _edge_dg(pc, phase, g, hi_end, m)
-        if fm == 0.0:
-            return m
-        if (fm > 0.0) == (fa > 0.0):
-            a, fa = m, fm
-            if side == -1:
-                fb *= 0.5
-            side = -1
-        else:
-            b, fb = m, fm
-            if side == 1:
-                fa *= 0.5
-            side = 1
-    return 0.5 * (a + b)
+    return illinois(_edge_dg, xa, xb, (pc, phase, g, hi_end))
 
 
 @numba.njit(cache=True)

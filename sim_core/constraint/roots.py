@@ -1,0 +1,119 @@
+"""The one-dimensional solvers every tabulator shares: bisection, Illinois false position,
+safeguarded Newton for a maximum.
+
+Each takes the function as a compiled (numba) function and its extra arguments as one tuple
+``args``, so one solver serves the ψ-search, the round wheel's closed form, the piece sweep and the
+polyline sweep. They are inlined into their callers (numba cannot cache a separately
+compiled solver specialised on a function argument, and then neither its callers).
+
+Worked example: √2 as the root of x² - 2 in [1, 2], by Illinois false position and by
+bisection on the sign, and the maximum of -(x - 0.3)² by Newton:
+
+    >>> import numba
+    >>> f = numba.njit(lambda x, a: x * x - a[0])
+    >>> round(illinois(f, 1.0, 2.0, (2.0,)), 15)
+    1.414213562373095
+    >>> below = numba.njit(lambda x, a: x * x < a[0])
+    >>> round(bisect(below, 1.0, 2.0, (2.0,), 0.0), 15)
+    1.414213562373095
+    >>> g = numba.njit(lambda x, a: (-(x - a[0]) ** 2, -2.0 * (x - a[0]), -2.0))
+    >>> newton_max(g, 0.0, 1.0, (0.3,), 1e-12, 0.0, True)[0]
+    0.3
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numba
+
+__all__ = ["bisect", "illinois", "newton_max"]
+
+
+@numba.njit(cache=True, inline="always")
+def bisect(below: Any, lo: float, hi: float, args: Any, rtol: float) -> float:
+    """The change point of the predicate ``below(x, args)`` (True left of it) in [lo, hi].
+
+    Halves until ``hi - lo <= rtol·max(1, |lo|)`` or the midpoint no longer moves (``rtol``
+    0: to the last bit), at most 200 times; returns the midpoint.
+    """
+    for _ in range(200):
+        if hi - lo <= rtol * max(1.0, abs(lo)):
+            break
+        m = 0.5 * (lo + hi)
+        if m <= lo or m >= hi:
+            break
+        if below(m, args):
+            lo = m
+        else:
+            hi = m
+    return 0.5 * (lo + hi)
+
+
+@numba.njit(cache=True, inline="always")
+def illinois(f: Any, xa: float, xb: float, args: Any) -> float:
+    """Root of ``f(x, args)`` in [xa, xb] by Illinois false position (to ~2e-16 relative);
+    nan if f has the same sign at both ends."""
+    fa = f(xa, args)
+    fb = f(xb, args)
+    if fa == 0.0:
+        return xa
+    if fb == 0.0:
+        return xb
+    if (fa > 0.0) == (fb > 0.0):
+        return math.nan
+    a, b = xa, xb
+    side = 0
+    for _ in range(200):
+        if b - a <= 2e-16 * max(1.0, abs(a)):
+            break
+        m = (a * fb - b * fa) / (fb - fa)
+        if not (a < m < b):
+            m = 0.5 * (a + b)
+        fm = f(m, args)
+        if fm == 0.0:
+            return m
+        if (fm > 0.0) == (fa > 0.0):
+            a, fa = m, fm
+            if side == -1:
+                fb *= 0.5
+            side = -1
+        else:
+            b, fb = m, fm
+            if side == 1:
+                fa *= 0.5
+            side = 1
+    return 0.5 * (a + b)
+
+
+@numba.njit(cache=True, inline="always")
+def newton_max(
+    g: Any, lo: float, hi: float, args: Any, atol: float, rtol: float, strict: bool
+) -> tuple[float, Any]:
+    """(ψ, g(ψ, args)) at the maximum of a unimodal function on (lo, hi) with g' (lo) > 0 > g'(hi).
+
+    ``g`` returns a tuple (G, G', G'', ...). Newton on G' kept inside the bracket (bisection
+    where a step leaves it or G'' >= 0), at most 60 steps; it stops after the step that
+    moved ψ by at most ``atol + rtol·|ψ|`` (only a Newton step, G'' < 0, if ``strict``),
+    when the bracket is 4e-16 wide, or on G' = 0 exactly.
+    """
+    a, b = lo, hi
+    psi = 0.5 * (lo + hi)
+    out = g(psi, args)
+    for _ in range(60):
+        gp, gpp = out[1], out[2]
+        if gp > 0.0:
+            a = psi
+        else:
+            b = psi
+        nxt = psi - gp / gpp if gpp < 0.0 else 0.5 * (a + b)
+        if not (a < nxt < b):
+            nxt = 0.5 * (a + b)
+        small = abs(nxt - psi) <= atol + rtol * abs(psi)
+        done = (small and (gpp < 0.0 or not strict)) or b - a <= 4e-16
+        psi = nxt
+        out = g(psi, args)
+        if done or out[1] == 0.0:
+            break
+    return psi, out
