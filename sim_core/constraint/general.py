@@ -37,9 +37,11 @@ from sim_core.constraint.nodes import (
     GL,
     GR,
     HERMITE_TOL,
+    MAX_STEPS,
     NCOL,
     PL,
     PR,
+    SHORTEST,
     SL,
     SR,
     XD,
@@ -47,7 +49,10 @@ from sim_core.constraint.nodes import (
     V,
     X,
     grow,
+    interval_stack,
+    pop,
     push,
+    split,
     stretch,
     table_from_nodes,
 )
@@ -484,22 +489,15 @@ def _tabulate_general(
         nodes[nn, XD] = nodes[0, XD] + (x1 - x0)
         nn += 1
     # ---------------------------------------------------------------- refinement
-    stack = np.empty((nn + 64, 2), np.int64)
-    ns = 0
-    for i in range(nn - 1):
-        stack = push(stack, ns, i, i + 1)
-        ns += 1
+    stack = interval_stack(nn)
+    ns = nn - 1
     guard = 0
-    while ns > 0 and guard < 20_000_000:
+    while ns > 0 and guard < MAX_STEPS:
         guard += 1
-        ns -= 1
-        ia = stack[ns, 0]
-        ib = stack[ns, 1]
-        xa = nodes[ia, X]
-        xb = nodes[ib, X]
+        ns, ia, ib, _, xa, xb = pop(stack, ns, nodes)
         h = xb - xa
         scale = max(1.0, abs(xa))
-        if h <= 4e-13 * scale:
+        if h <= SHORTEST * scale:
             continue
         ea = abs(nodes[ib, PL] - (nodes[ia, PR] + nodes[ia, GR] * h))
         eb = abs(nodes[ia, PR] - (nodes[ib, PL] - nodes[ib, GL] * h))
@@ -560,17 +558,10 @@ def _tabulate_general(
             nodes[nn] = row2
             id2 = nn
             nn += 1
-            stack = push(stack, ns, ia, ic)
-            ns += 1
-            stack = push(stack, ns, ic, id2)
-            ns += 1
-            stack = push(stack, ns, id2, ib)
-            ns += 1
+            stack, ns = split(stack, ns, ic, id2, ib)
+            stack, ns = push(stack, ns, ia, ic, 0)
         else:
-            stack = push(stack, ns, ia, ic)
-            ns += 1
-            stack = push(stack, ns, ic, ib)
-            ns += 1
+            stack, ns = split(stack, ns, ia, ic, ib)
     out = nodes[:nn]
     order = np.argsort(out[:, X], kind="mergesort")
     return out[order]

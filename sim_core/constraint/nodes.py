@@ -55,13 +55,54 @@ def grow(a: NDArray, n: int) -> NDArray:
     return b
 
 
+MAX_STEPS = 50_000_000
+"""Refinement steps at most per table (a guard: real tables take far fewer)."""
+
+SHORTEST = 4e-13
+"""Intervals shorter than this (relative to max(1, |x|)) are not refined further."""
+
+
 @numba.njit(cache=True)
-def push(stack: NDArray[np.int64], ns: int, ia: int, ib: int) -> NDArray[np.int64]:
-    """Interval (ia, ib) onto the refinement stack at row ``ns`` (grown if full)."""
+def interval_stack(nn: int) -> NDArray[np.int64]:
+    """The refinement stack (rows: left node, right node, tag) holding every interval
+    between ``nn`` sorted nodes, the leftmost on top (row nn - 2)."""
+    stack = np.zeros((nn + 64, 3), np.int64)
+    for k in range(nn - 1):
+        stack[k, 0] = nn - 2 - k
+        stack[k, 1] = nn - 1 - k
+    return stack
+
+
+@numba.njit(cache=True, inline="always")
+def pop(
+    stack: NDArray[np.int64], ns: int, nodes: NDArray[np.float64]
+) -> tuple[int, int, int, int, float, float]:
+    """(new stack size, left node, right node, tag, x left, x right) of the interval on top."""
+    ns -= 1
+    ia = stack[ns, 0]
+    ib = stack[ns, 1]
+    return ns, ia, ib, stack[ns, 2], nodes[ia, X], nodes[ib, X]
+
+
+@numba.njit(cache=True)
+def push(
+    stack: NDArray[np.int64], ns: int, ia: int, ib: int, tag: int
+) -> tuple[NDArray[np.int64], int]:
+    """Interval (ia, ib) with ``tag`` onto the refinement stack (grown if full); new size."""
     stack = grow(stack, ns)
     stack[ns, 0] = ia
     stack[ns, 1] = ib
-    return stack
+    stack[ns, 2] = tag
+    return stack, ns + 1
+
+
+@numba.njit(cache=True)
+def split(
+    stack: NDArray[np.int64], ns: int, ia: int, ic: int, ib: int
+) -> tuple[NDArray[np.int64], int]:
+    """Intervals (ia, ic) and (ic, ib) onto the stack, the left one on top."""
+    stack, ns = push(stack, ns, ic, ib, 0)
+    return push(stack, ns, ia, ic, 0)
 
 
 def check_range(x_start: float, x_end: float) -> tuple[float, float]:

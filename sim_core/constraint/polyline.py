@@ -53,7 +53,9 @@ from numpy.typing import NDArray
 
 from sim_core.constraint.nodes import (
     HERMITE_TOL,
+    MAX_STEPS,
     NCOL,
+    SHORTEST,
     SL,
     SR,
     XD,
@@ -61,6 +63,10 @@ from sim_core.constraint.nodes import (
     V,
     X,
     grow,
+    interval_stack,
+    pop,
+    push,
+    split,
     table_from_nodes,
 )
 from sim_core.constraint.rail_polyline import RailPolyline, rail_polyline
@@ -682,31 +688,23 @@ def sweep_kernel(
         feats[nn, 5] = r
         feats[nn, 6] = g0
         nn += 1
-    stack = np.empty((nn + 64, 2), np.int64)
-    ns = 0
-    for i in range(nn - 2, -1, -1):
-        stack[ns, 0] = i
-        stack[ns, 1] = i + 1
-        ns += 1
+    stack = interval_stack(nn)
+    ns = nn - 1
     cells = np.empty((8, 2), np.int64)
     guard = 0
-    while ns > 0 and guard < 20_000_000:
+    while ns > 0 and guard < MAX_STEPS:
         guard += 1
-        ns -= 1
-        ia = stack[ns, 0]
-        ib = stack[ns, 1]
-        xa = nodes[ia, X]
-        xb = nodes[ib, X]
+        ns, ia, ib, _, xa, xb = pop(stack, ns, nodes)
         hlen = xb - xa
         scale = max(1.0, abs(xa))
-        if hlen <= 4e-13 * scale:
+        if hlen <= SHORTEST * scale:
             continue
         tA, gA, rA = feats[ia, 3], feats[ia, 4], feats[ia, 5]
         tB, gB, rB = feats[ib, 0], feats[ib, 1], feats[ib, 2]
         hint = feats[ia, 6]
         same = tA == tB and gA == gB and rA == rB
         xn = math.nan
-        split = False  # True: a plain node (one feature) at xn from a global solve
+        plain = False  # True: a plain node (one feature) at xn from a global solve
         da = db = 0.0
         if not same:
             da = (
@@ -788,12 +786,7 @@ def sweep_kernel(
                     feats[nn, 6] = hint
                     ic = nn
                     nn += 1
-                    stack = grow(stack, ns + 2)
-                    stack[ns, 0] = ic
-                    stack[ns, 1] = ib
-                    stack[ns + 1, 0] = ia
-                    stack[ns + 1, 1] = ic
-                    ns += 2
+                    stack, ns = split(stack, ns, ia, ic, ib)
                     continue
                 else:
                     # the change sits on an end node: that node takes both sides' features
@@ -810,12 +803,9 @@ def sweep_kernel(
                         feats[ib, 0] = tA
                         feats[ib, 1] = gA
                         feats[ib, 2] = rA
-                    stack = grow(stack, ns + 1)
-                    stack[ns, 0] = ia
-                    stack[ns, 1] = ib
-                    ns += 1
+                    stack, ns = push(stack, ns, ia, ib, 0)
                     continue
-            split = True
+            plain = True
             if not (xa < xn < xb):
                 xn = 0.5 * (xa + xb)
                 if hlen <= 1.6e-12 * scale:
@@ -825,7 +815,7 @@ def sweep_kernel(
             if hlen <= 1.6e-12 * scale:
                 continue
         vg, tg, gg, rg, sg, xdg, g0 = _global(pl, ymax, drg, phase, xn, hint, tA, gA, rA)
-        if not split:
+        if not plain:
             hm = 0.5 * (nodes[ia, V] + nodes[ib, V]) + 0.125 * hlen * (
                 nodes[ia, SR] - nodes[ib, SL]
             )
@@ -855,12 +845,7 @@ def sweep_kernel(
         feats[nn, 6] = g0
         ic = nn
         nn += 1
-        stack = grow(stack, ns + 2)
-        stack[ns, 0] = ic
-        stack[ns, 1] = ib
-        stack[ns + 1, 0] = ia
-        stack[ns + 1, 1] = ic
-        ns += 2
+        stack, ns = split(stack, ns, ia, ic, ib)
     out = nodes[:nn]
     order = np.argsort(out[:, X], kind="mergesort")
     return out[order]

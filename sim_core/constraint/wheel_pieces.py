@@ -47,7 +47,9 @@ from numpy.typing import NDArray
 
 from sim_core.constraint.nodes import (
     HERMITE_TOL,
+    MAX_STEPS,
     NCOL,
+    SHORTEST,
     SL,
     SR,
     XD,
@@ -55,6 +57,10 @@ from sim_core.constraint.nodes import (
     V,
     X,
     grow,
+    interval_stack,
+    pop,
+    push,
+    split,
     stretch,
     table_from_nodes,
 )
@@ -576,25 +582,15 @@ def tabulate_pieces_kernel(
         feats[nn, 2] = g0
         nn += 1
     # ---------------------------------------------------------------- intervals
-    stack = np.empty((nn + 64, 3), np.int64)
-    ns = 0
-    for i in range(nn - 2, -1, -1):
-        stack[ns, 0] = i
-        stack[ns, 1] = i + 1
-        stack[ns, 2] = 0
-        ns += 1
+    stack = interval_stack(nn)
+    ns = nn - 1
     guard = 0
-    while ns > 0 and guard < 50_000_000:
+    while ns > 0 and guard < MAX_STEPS:
         guard += 1
-        ns -= 1
-        ia = stack[ns, 0]
-        ib = stack[ns, 1]
-        retry = stack[ns, 2]
-        xa = nodes[ia, X]
-        xb = nodes[ib, X]
+        ns, ia, ib, retry, xa, xb = pop(stack, ns, nodes)
         h = xb - xa
         scale = max(1.0, abs(xa))
-        if h <= 4e-13 * scale:
+        if h <= SHORTEST * scale:
             continue
         fA = feats[ia, 1]
         fB = feats[ib, 0]
@@ -638,22 +634,14 @@ def tabulate_pieces_kernel(
                     nodes[ia, K] = 1.0
                 nodes[ia, XD] = xdn
                 feats[ia, 1] = fr
-                stack = grow(stack, ns + 1)
-                stack[ns, 0] = ia
-                stack[ns, 1] = ib
-                stack[ns, 2] = retry + 1
-                ns += 1
+                stack, ns = push(stack, ns, ia, ib, retry + 1)
                 continue
             if not math.isnan(xn) and xn >= xb and fl != fB and retry < 4:
                 if kn > 0.0:
                     nodes[ib, SL] = sl
                     nodes[ib, K] = 1.0
                 feats[ib, 0] = fl
-                stack = grow(stack, ns + 1)
-                stack[ns, 0] = ia
-                stack[ns, 1] = ib
-                stack[ns, 2] = retry + 1
-                ns += 1
+                stack, ns = push(stack, ns, ia, ib, retry + 1)
                 continue
             if math.isnan(xn) or not (xa < xn < xb):
                 if h <= 1e-12 * scale:
@@ -685,14 +673,7 @@ def tabulate_pieces_kernel(
         feats[nn, 2] = hint
         ic = nn
         nn += 1
-        stack = grow(stack, ns + 2)
-        stack[ns, 0] = ic
-        stack[ns, 1] = ib
-        stack[ns, 2] = 0
-        stack[ns + 1, 0] = ia
-        stack[ns + 1, 1] = ic
-        stack[ns + 1, 2] = 0
-        ns += 2
+        stack, ns = split(stack, ns, ia, ic, ib)
     out = nodes[:nn]
     order = np.argsort(out[:, X], kind="mergesort")
     return out[order]
