@@ -55,6 +55,30 @@ def grow(a: NDArray, n: int) -> NDArray:
     return b
 
 
+@numba.njit(cache=True)
+def add_node(
+    nodes: NDArray[np.float64],
+    nn: int,
+    x: float,
+    v: float,
+    sl: float,
+    sr: float,
+    xd: float,
+    k: float,
+) -> NDArray[np.float64]:
+    """Row ``nn`` of ``nodes`` (grown if full) set to the node at x: value, slopes left and
+    right, contact point, kink flag (the ψ-search's columns 0)."""
+    nodes = grow(nodes, nn)
+    nodes[nn] = 0.0
+    nodes[nn, X] = x
+    nodes[nn, V] = v
+    nodes[nn, SL] = sl
+    nodes[nn, SR] = sr
+    nodes[nn, XD] = xd
+    nodes[nn, K] = k
+    return nodes
+
+
 MAX_STEPS = 50_000_000
 """Refinement steps at most per table (a guard: real tables take far fewer)."""
 

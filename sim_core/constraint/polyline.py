@@ -62,6 +62,7 @@ from sim_core.constraint.nodes import (
     K,
     V,
     X,
+    add_node,
     grow,
     interval_stack,
     pop,
@@ -645,6 +646,31 @@ def _handover(tA: int, gA: int, rA: int, tB: int, gB: int, rB: int) -> bool:
     return False
 
 
+@numba.njit(cache=True)
+def _put_features(
+    feats: NDArray[np.int64],
+    i: int,
+    tl: int,
+    gl: int,
+    rl: int,
+    tr: int,
+    gr: int,
+    rr: int,
+    hint: int,
+) -> NDArray[np.int64]:
+    """Row i of ``feats`` (grown if full): the features (type, piece, rail index) left and
+    right of node i and the piece under the centre there (the next global solve's hint)."""
+    feats = grow(feats, i)
+    feats[i, 0] = tl
+    feats[i, 1] = gl
+    feats[i, 2] = rl
+    feats[i, 3] = tr
+    feats[i, 4] = gr
+    feats[i, 5] = rr
+    feats[i, 6] = hint
+    return feats
+
+
 @numba.njit(cache=True, nogil=True)
 def sweep_kernel(
     P: NDArray[np.float64],
@@ -675,18 +701,8 @@ def sweep_kernel(
         v, t, g, r, s, xd, g0 = _global(pl, ymax, drg, phase, xv, hint, pt, pg, pr)
         pt, pg, pr = t, g, r
         hint = g0
-        nodes[nn, X] = xv
-        nodes[nn, V] = v
-        nodes[nn, SL] = s
-        nodes[nn, SR] = s
-        nodes[nn, XD] = xd
-        feats[nn, 0] = t
-        feats[nn, 1] = g
-        feats[nn, 2] = r
-        feats[nn, 3] = t
-        feats[nn, 4] = g
-        feats[nn, 5] = r
-        feats[nn, 6] = g0
+        nodes = add_node(nodes, nn, xv, v, s, s, xd, 0.0)
+        feats = _put_features(feats, nn, t, g, r, t, g, r, g0)
         nn += 1
     stack = interval_stack(nn)
     ns = nn - 1
@@ -768,22 +784,8 @@ def sweep_kernel(
                     xn = xs
                     third = True
                 elif xa < xs < xb:
-                    nodes = grow(nodes, nn + 1)
-                    feats = grow(feats, nn + 1)
-                    nodes[nn] = 0.0
-                    nodes[nn, X] = xs
-                    nodes[nn, V] = max(top, vg)
-                    nodes[nn, SL] = sa
-                    nodes[nn, SR] = sb
-                    nodes[nn, XD] = xdb
-                    nodes[nn, K] = 1.0
-                    feats[nn, 0] = tA
-                    feats[nn, 1] = gA
-                    feats[nn, 2] = rA
-                    feats[nn, 3] = tB
-                    feats[nn, 4] = gB
-                    feats[nn, 5] = rB
-                    feats[nn, 6] = hint
+                    nodes = add_node(nodes, nn, xs, max(top, vg), sa, sb, xdb, 1.0)
+                    feats = _put_features(feats, nn, tA, gA, rA, tB, gB, rB, hint)
                     ic = nn
                     nn += 1
                     stack, ns = split(stack, ns, ia, ic, ib)
@@ -828,21 +830,8 @@ def sweep_kernel(
                     continue
         if not (xa < xn < xb):
             continue
-        nodes = grow(nodes, nn + 1)
-        feats = grow(feats, nn + 1)
-        nodes[nn] = 0.0
-        nodes[nn, X] = xn
-        nodes[nn, V] = vg
-        nodes[nn, SL] = sg
-        nodes[nn, SR] = sg
-        nodes[nn, XD] = xdg
-        feats[nn, 0] = tg
-        feats[nn, 1] = gg
-        feats[nn, 2] = rg
-        feats[nn, 3] = tg
-        feats[nn, 4] = gg
-        feats[nn, 5] = rg
-        feats[nn, 6] = g0
+        nodes = add_node(nodes, nn, xn, vg, sg, sg, xdg, 0.0)
+        feats = _put_features(feats, nn, tg, gg, rg, tg, gg, rg, g0)
         ic = nn
         nn += 1
         stack, ns = split(stack, ns, ia, ic, ib)

@@ -37,6 +37,7 @@ from sim_core.constraint.nodes import (
     K,
     V,
     X,
+    add_node,
     grow,
     merge_close,
     stretch,
@@ -233,12 +234,10 @@ def _tabulate_poly(
                         nodes[nn - 1, XD] = tf[nt, 2]
                         nodes[nn - 1, K] = max(nodes[nn - 1, K], tf[nt, 4])
                     else:
-                        nodes[nn, X] = xn
-                        nodes[nn, V] = tf[nt, 1]
-                        nodes[nn, SL] = _piece(ti[nt, 1], xn, R, vx, vy)[1]
-                        nodes[nn, SR] = tf[nt, 3]
-                        nodes[nn, XD] = tf[nt, 2]
-                        nodes[nn, K] = tf[nt, 4]
+                        sln = _piece(ti[nt, 1], xn, R, vx, vy)[1]
+                        nodes = add_node(
+                            nodes, nn, xn, tf[nt, 1], sln, tf[nt, 3], tf[nt, 2], tf[nt, 4]
+                        )
                         nn += 1
                     continue
                 a = tf[nt, 0]
@@ -346,12 +345,7 @@ def _tabulate_poly(
             nodes[nn - 1, SR] = sl
             nodes[nn - 1, XD] = xd
         else:
-            nodes[nn, X] = xv
-            nodes[nn, V] = v
-            nodes[nn, SL] = sl
-            nodes[nn, SR] = sl
-            nodes[nn, XD] = xd
-            nodes[nn, K] = 0.0
+            nodes = add_node(nodes, nn, xv, v, sl, sl, xd, 0.0)
             nn += 1
         xprev, pprev = xv, p
     return nodes[:nn]

@@ -56,6 +56,7 @@ from sim_core.constraint.nodes import (
     K,
     V,
     X,
+    add_node,
     grow,
     interval_stack,
     pop,
@@ -571,12 +572,7 @@ def tabulate_pieces_kernel(
         xv = x0 + i * h0 if i < nint else x1
         v, f, s, xd, g0 = _global(pc, phase, drg, xv, hint)
         hint = g0
-        nodes[nn, X] = xv
-        nodes[nn, V] = v
-        nodes[nn, SL] = s
-        nodes[nn, SR] = s
-        nodes[nn, XD] = xd
-        nodes[nn, K] = 0.0
+        nodes = add_node(nodes, nn, xv, v, s, s, xd, 0.0)
         feats[nn, 0] = f
         feats[nn, 1] = f
         feats[nn, 2] = g0
@@ -660,14 +656,8 @@ def tabulate_pieces_kernel(
                 continue
         else:
             continue
-        nodes = grow(nodes, nn + 1)
-        feats = grow(feats, nn + 1)
-        nodes[nn, X] = xn
-        nodes[nn, V] = vn
-        nodes[nn, SL] = sl
-        nodes[nn, SR] = sr
-        nodes[nn, XD] = xdn
-        nodes[nn, K] = kn
+        nodes = add_node(nodes, nn, xn, vn, sl, sr, xdn, kn)
+        feats = grow(feats, nn)
         feats[nn, 0] = fl
         feats[nn, 1] = fr
         feats[nn, 2] = hint
