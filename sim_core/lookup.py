@@ -45,19 +45,15 @@ def locate(x: NDArray[np.float64], xv: float, hint: int) -> int:
     if x[i] <= xv:
         if i + 1 < n - 1 and xv >= x[i + 1]:
             if i + 2 < n - 1 and xv >= x[i + 2]:
-                lo = i + 2
-                hi = n - 1
-                while hi - lo > 1:
-                    mid = (lo + hi) // 2
-                    if x[mid] <= xv:
-                        lo = mid
-                    else:
-                        hi = mid
-                return lo
+                return _bisect_index(x, xv, i + 2, n - 1)
             return i + 1
         return i
-    lo = 0
-    hi = i
+    return _bisect_index(x, xv, 0, i)
+
+
+@numba.njit(cache=True, inline="always")
+def _bisect_index(x: NDArray[np.float64], xv: float, lo: int, hi: int) -> int:
+    """The largest i in [lo, hi) with x[i] <= xv, given x[lo] <= xv < x[hi] (or lo the answer)."""
     while hi - lo > 1:
         mid = (lo + hi) // 2
         if x[mid] <= xv:

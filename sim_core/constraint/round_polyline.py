@@ -186,6 +186,43 @@ def _block_max(vy: NDArray[np.float64], B: int) -> NDArray[np.float64]:
     return bmax
 
 
+@numba.njit(cache=True, inline="always")
+def _interval_task(
+    tf: NDArray[np.float64], ti: NDArray[np.int64], nt: int, a: float, b: float, pa: int, pb: int
+) -> int:
+    """Task row nt: resolve the changes of piece from pa (at a) to pb (at b); returns nt + 1."""
+    tf[nt, 0] = a
+    tf[nt, 1] = b
+    ti[nt, 0] = 0
+    ti[nt, 1] = pa
+    ti[nt, 2] = pb
+    return nt + 1
+
+
+@numba.njit(cache=True, inline="always")
+def _node_task(
+    tf: NDArray[np.float64],
+    ti: NDArray[np.int64],
+    nt: int,
+    x: float,
+    v: float,
+    xd: float,
+    sr: float,
+    kink: float,
+    piece: int,
+) -> int:
+    """Task row nt: emit the node at x (value, contact point, right slope, kink flag, the
+    piece on its left); returns nt + 1."""
+    tf[nt, 0] = x
+    tf[nt, 1] = v
+    tf[nt, 2] = xd
+    tf[nt, 3] = sr
+    tf[nt, 4] = kink
+    ti[nt, 0] = 1
+    ti[nt, 1] = piece
+    return nt + 1
+
+
 @numba.njit(cache=True)
 def _tabulate_poly(
     x0: float,
@@ -215,11 +252,7 @@ def _tabulate_poly(
             v, p = _poly_solve(xv, R, vx, vy, bmax, B, gmax)
             # resolve the changes of piece in (xprev, xv)
             nt = 0
-            tf[0, 0] = xprev
-            tf[0, 1] = xv
-            ti[0, 0] = 0
-            ti[0, 1] = pprev
-            ti[0, 2] = p
+            _interval_task(tf, ti, 0, xprev, xv, pprev, p)
             nt = 1
             budget = 100_000
             while nt > 0 and budget > 0:
@@ -279,64 +312,23 @@ def _tabulate_poly(
                 va, _, _ = _piece(ea, xs, R, vx, vy)
                 vb, srb, xdb = _piece(eb, xs, R, vx, vy)
                 top = max(va, vb)
-                if nt + 4 >= tf.shape[0]:
-                    tf2 = np.empty((2 * tf.shape[0], 5))
-                    ti2 = np.empty((2 * tf.shape[0], 3), np.int64)
-                    tf2[:nt] = tf[:nt]
-                    ti2[:nt] = ti[:nt]
-                    tf, ti = tf2, ti2
+                tf = grow(tf, nt + 4)
+                ti = grow(ti, nt + 4)
                 if vc > top + 1e-15 and pc != pa and pc != target and pc != ea and pc != eb:
                     # a third piece is on top at xs: split there (pop order: left, node, right)
                     _, slc, xdc = _piece(pc, xs, R, vx, vy)
-                    tf[nt, 0] = xs
-                    tf[nt, 1] = b
-                    ti[nt, 0] = 0
-                    ti[nt, 1] = pc
-                    ti[nt, 2] = pb
-                    tf[nt + 1, 0] = xs
-                    tf[nt + 1, 1] = vc
-                    tf[nt + 1, 2] = xdc
-                    tf[nt + 1, 3] = slc
-                    tf[nt + 1, 4] = 0.0
-                    ti[nt + 1, 0] = 1
-                    ti[nt + 1, 1] = pc
-                    tf[nt + 2, 0] = a
-                    tf[nt + 2, 1] = xs
-                    ti[nt + 2, 0] = 0
-                    ti[nt + 2, 1] = pa
-                    ti[nt + 2, 2] = pc
-                    nt += 3
+                    nt = _interval_task(tf, ti, nt, xs, b, pc, pb)
+                    nt = _node_task(tf, ti, nt, xs, vc, xdc, slc, 0.0, pc)
+                    nt = _interval_task(tf, ti, nt, a, xs, pa, pc)
                     continue
                 # the transition node, with what remains on either side of it
                 if via >= 0:
-                    tf[nt, 0] = xs
-                    tf[nt, 1] = b
-                    ti[nt, 0] = 0
-                    ti[nt, 1] = via
-                    ti[nt, 2] = pb
-                    nt += 1
+                    nt = _interval_task(tf, ti, nt, xs, b, via, pb)
                 elif eb != pb:
-                    tf[nt, 0] = xs
-                    tf[nt, 1] = b
-                    ti[nt, 0] = 0
-                    ti[nt, 1] = eb
-                    ti[nt, 2] = pb
-                    nt += 1
-                tf[nt, 0] = xs
-                tf[nt, 1] = top
-                tf[nt, 2] = xdb
-                tf[nt, 3] = srb
-                tf[nt, 4] = 0.0 if c1 else 1.0
-                ti[nt, 0] = 1
-                ti[nt, 1] = ea
-                nt += 1
+                    nt = _interval_task(tf, ti, nt, xs, b, eb, pb)
+                nt = _node_task(tf, ti, nt, xs, top, xdb, srb, 0.0 if c1 else 1.0, ea)
                 if ea != pa:
-                    tf[nt, 0] = a
-                    tf[nt, 1] = xs
-                    ti[nt, 0] = 0
-                    ti[nt, 1] = pa
-                    ti[nt, 2] = ea
-                    nt += 1
+                    nt = _interval_task(tf, ti, nt, a, xs, pa, ea)
         # the grid node itself
         nodes = grow(nodes, nn + 1)
         _, sl, xd = _piece(p, xv, R, vx, vy)
