@@ -41,7 +41,6 @@ from sim_core.constraint.nodes import (
     NCOL,
     PL,
     PR,
-    SHORTEST,
     SL,
     SR,
     XD,
@@ -50,7 +49,7 @@ from sim_core.constraint.nodes import (
     X,
     grow,
     interval_stack,
-    pop,
+    next_interval,
     push,
     split,
     stretch,
@@ -489,16 +488,11 @@ def _tabulate_general(
         nodes[nn, XD] = nodes[0, XD] + (x1 - x0)
         nn += 1
     # ---------------------------------------------------------------- refinement
-    stack = interval_stack(nn)
-    ns = nn - 1
-    guard = 0
-    while ns > 0 and guard < MAX_STEPS:
-        guard += 1
-        ns, ia, ib, _, xa, xb = pop(stack, ns, nodes)
-        h = xb - xa
-        scale = max(1.0, abs(xa))
-        if h <= SHORTEST * scale:
-            continue
+    stack, ns = interval_stack(nn)
+    for _ in range(MAX_STEPS):
+        ns, ia, ib, _, xa, xb, h, scale = next_interval(stack, ns, nodes)
+        if ia < 0:
+            break
         ea = abs(nodes[ib, PL] - (nodes[ia, PR] + nodes[ia, GR] * h))
         eb = abs(nodes[ia, PR] - (nodes[ib, PL] - nodes[ib, GL] * h))
         smooth = abs(nodes[ib, GL] - nodes[ia, GR]) * h + PSI_JUMP

@@ -87,25 +87,32 @@ SHORTEST = 4e-13
 
 
 @numba.njit(cache=True)
-def interval_stack(nn: int) -> NDArray[np.int64]:
-    """The refinement stack (rows: left node, right node, tag) holding every interval
-    between ``nn`` sorted nodes, the leftmost on top (row nn - 2)."""
+def interval_stack(nn: int) -> tuple[NDArray[np.int64], int]:
+    """(stack, size): the refinement stack (rows: left node, right node, tag) holding every
+    interval between ``nn`` sorted nodes, the leftmost on top."""
     stack = np.zeros((nn + 64, 3), np.int64)
     for k in range(nn - 1):
         stack[k, 0] = nn - 2 - k
         stack[k, 1] = nn - 1 - k
-    return stack
+    return stack, nn - 1
 
 
 @numba.njit(cache=True, inline="always")
-def pop(
+def next_interval(
     stack: NDArray[np.int64], ns: int, nodes: NDArray[np.float64]
-) -> tuple[int, int, int, int, float, float]:
-    """(new stack size, left node, right node, tag, x left, x right) of the interval on top."""
-    ns -= 1
-    ia = stack[ns, 0]
-    ib = stack[ns, 1]
-    return ns, ia, ib, stack[ns, 2], nodes[ia, X], nodes[ib, X]
+) -> tuple[int, int, int, int, float, float, float, float]:
+    """(new stack size, left node, right node, tag, x left, x right, length, max(1, |x left|))
+    of the next interval on the stack longer than SHORTEST; left node -1 once it is empty."""
+    while ns > 0:
+        ns -= 1
+        ia = stack[ns, 0]
+        ib = stack[ns, 1]
+        xa = nodes[ia, X]
+        xb = nodes[ib, X]
+        scale = max(1.0, abs(xa))
+        if xb - xa > SHORTEST * scale:
+            return ns, ia, ib, stack[ns, 2], xa, xb, xb - xa, scale
+    return 0, -1, -1, 0, 0.0, 0.0, 0.0, 1.0
 
 
 @numba.njit(cache=True)

@@ -55,7 +55,6 @@ from sim_core.constraint.nodes import (
     HERMITE_TOL,
     MAX_STEPS,
     NCOL,
-    SHORTEST,
     SL,
     SR,
     XD,
@@ -65,7 +64,7 @@ from sim_core.constraint.nodes import (
     add_node,
     grow,
     interval_stack,
-    pop,
+    next_interval,
     push,
     split,
     table_from_nodes,
@@ -704,17 +703,12 @@ def sweep_kernel(
         nodes = add_node(nodes, nn, xv, v, s, s, xd, 0.0)
         feats = _put_features(feats, nn, t, g, r, t, g, r, g0)
         nn += 1
-    stack = interval_stack(nn)
-    ns = nn - 1
+    stack, ns = interval_stack(nn)
     cells = np.empty((8, 2), np.int64)
-    guard = 0
-    while ns > 0 and guard < MAX_STEPS:
-        guard += 1
-        ns, ia, ib, _, xa, xb = pop(stack, ns, nodes)
-        hlen = xb - xa
-        scale = max(1.0, abs(xa))
-        if hlen <= SHORTEST * scale:
-            continue
+    for _ in range(MAX_STEPS):
+        ns, ia, ib, _, xa, xb, hlen, scale = next_interval(stack, ns, nodes)
+        if ia < 0:
+            break
         tA, gA, rA = feats[ia, 3], feats[ia, 4], feats[ia, 5]
         tB, gB, rB = feats[ib, 0], feats[ib, 1], feats[ib, 2]
         hint = feats[ia, 6]

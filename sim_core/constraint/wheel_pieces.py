@@ -49,7 +49,6 @@ from sim_core.constraint.nodes import (
     HERMITE_TOL,
     MAX_STEPS,
     NCOL,
-    SHORTEST,
     SL,
     SR,
     XD,
@@ -59,7 +58,7 @@ from sim_core.constraint.nodes import (
     add_node,
     grow,
     interval_stack,
-    pop,
+    next_interval,
     push,
     split,
     stretch,
@@ -578,16 +577,11 @@ def tabulate_pieces_kernel(
         feats[nn, 2] = g0
         nn += 1
     # ---------------------------------------------------------------- intervals
-    stack = interval_stack(nn)
-    ns = nn - 1
-    guard = 0
-    while ns > 0 and guard < MAX_STEPS:
-        guard += 1
-        ns, ia, ib, retry, xa, xb = pop(stack, ns, nodes)
-        h = xb - xa
-        scale = max(1.0, abs(xa))
-        if h <= SHORTEST * scale:
-            continue
+    stack, ns = interval_stack(nn)
+    for _ in range(MAX_STEPS):
+        ns, ia, ib, retry, xa, xb, h, scale = next_interval(stack, ns, nodes)
+        if ia < 0:
+            break
         fA = feats[ia, 1]
         fB = feats[ib, 0]
         hint = feats[ia, 2]
