@@ -198,7 +198,7 @@ def test_dispatch_and_rail_reuse() -> None:
     rail = rough_rail()
     w = WHEELS["ideal_flat"]()
     assert not supports_polyline(WheelOutline.round(R), rail)
-    assert not supports_polyline(w, RailProfile.step(1e-4, 0.0))
+    assert supports_polyline(w, RailProfile.step(1e-4, 0.0))
     assert not supports_polyline(w, RailProfile.sampled([0.0, 1e-3, 2e-3], [0.0, 1e-3, 0.0]))
     # the rail's preprocessing is made once and reused by the next wheel
     a = rail_polyline(rail, -0.1, 0.1, R)
@@ -213,3 +213,24 @@ def test_dispatch_and_rail_reuse() -> None:
 
 def test_warm_up_constraint_runs() -> None:
     warm_up_constraint()
+
+
+@pytest.mark.parametrize("kind", ["ideal_flat", "rounded_flat"])
+@pytest.mark.parametrize("height", [1e-4, -1e-4])
+def test_flat_wheel_on_a_step_rail_against_general(kind: str, height: float) -> None:
+    """A step rail is a polyline with a vertical riser: the sweep takes it (no ψ-search) and
+    agrees with the ψ-search to the table's tolerance, the corners' kinks included."""
+    R = 0.46
+    wheel = (
+        WheelOutline.ideal_flat(R, 0.03)
+        if kind == "ideal_flat"
+        else WheelOutline.rounded_flat(R, 0.04, 0.04**2 / (16 * R))
+    )
+    rail = RailProfile.step(height, 0.003)
+    assert supports_polyline(wheel, rail)
+    xq = np.linspace(-0.01, 0.01, 2001)
+    for phase in (0.0, 0.01, -0.005):
+        fast = tabulate_constraint(wheel, rail, -0.01, 0.01, phase=phase)
+        exact, _ = evaluate_exact(wheel, rail, xq, phase=phase)
+        assert np.abs(fast.evaluate(xq) - exact).max() < 1e-11
+        assert fast.kinks.size >= 1

@@ -1,4 +1,4 @@
-"""Fast exact y_C^k of an out-of-round wheel on a polyline (sampled, file, dented) rail.
+"""Fast exact y_C^k of an out-of-round wheel on a polyline (sampled, file, dented, step) rail.
 
 On a polyline rail y_r(p) (vertices (x_i, y_i), segment slopes s_j) and a wheel cut into
 pieces (:func:`sim_core.constraint.wheel_pieces.wheel_pieces`: one smooth formula r(θ) each,
@@ -67,6 +67,7 @@ from sim_core.constraint.nodes import (
     next_interval,
     push,
     split,
+    stretch,
     table_from_nodes,
 )
 from sim_core.constraint.rail_polyline import RailPolyline, rail_polyline
@@ -120,8 +121,8 @@ FT_T, FT_W, FT_V = 0, 1, 2
 """Feature types: piece interior tangent to a segment, wheel vertex on a segment, rail vertex under a piece."""
 
 MAX_RAIL_SLOPE = 0.2
-"""The sweep is used on rails whose segments are no steeper than this (a step or a dented step's
-1e-12 m riser keeps the general ψ-search)."""
+"""The sweep is used on sampled rails whose segments are no steeper than this (a dented
+step's 1e-12 m riser keeps the general ψ-search; a step rail's vertical riser does not)."""
 
 CLIP = 0.5
 """|ψ| bound (rad) of the cells of the restricted solves (x_D monotone in ψ inside)."""
@@ -132,8 +133,17 @@ r - R: the bound of the global solve then skips the rail segments that cannot re
 
 
 def supports_polyline(wheel: WheelOutline, rail: RailProfile) -> bool:
-    """True if the polyline sweep applies: an out-of-round wheel on a gently sloped sampled rail."""
-    if wheel.kind == "round" or rail.kind != "sampled" or rail.x.size < 2:
+    """True if the polyline sweep applies: an out-of-round wheel on a step rail or on a
+    sampled rail whose segments are no steeper than ``MAX_RAIL_SLOPE``.
+
+    A step's riser is a vertical segment (only its two corners can carry the wheel); a
+    sampled rail's near-vertical riser (a dented step's 1e-12 m ramp) keeps the ψ-search.
+    """
+    if wheel.kind == "round":
+        return False
+    if rail.kind == "step":
+        return True
+    if rail.kind != "sampled" or rail.x.size < 2:
         return False
     s = np.abs(np.diff(rail.y) / np.diff(rail.x))
     return bool(s.max() <= MAX_RAIL_SLOPE)
@@ -883,15 +893,14 @@ def tabulate_polyline(
     dx: float | None,
     resolution: float,
 ) -> ConstraintTable:
-    """An out-of-round wheel on a sampled rail (sim_core.constraint.polyline).
+    """An out-of-round wheel on a sampled or step rail (sim_core.constraint.polyline).
 
     The cell sweep inside the stretches where the wheel's out-of-roundness can reach the
     contact (all of it for a sampled outline), the round wheel's closed form elsewhere.
     """
     R = wheel.nominal_radius
     step = float(dx) if dx is not None else min(resolution, 1e-3)
-    margin = 0.01 + 2.0 * step
-    x0, x1 = a - margin, b + margin
+    x0, x1, _ = stretch(a, b, step, 0.0)
     poly = rail_polyline(rail, x0, x1, R)
     P = polyline_pieces(wheel)
     parts: list[NDArray[np.float64]] = []

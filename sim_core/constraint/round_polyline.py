@@ -349,7 +349,7 @@ _ROUND_CACHE: PerRailCache[NDArray[np.float64]] = PerRailCache(16)
 def round_nodes(
     rail: RailProfile, R: float, step: float, x0: float, x1: float
 ) -> NDArray[np.float64]:
-    """The round wheel's node rows (radius R) on the whole sampled rail, made once per rail and R.
+    """The round wheel's node rows (radius R) on the whole polyline rail, made once per rail and R.
 
     Wheel-independent: every out-of-round wheel of radius R on this rail takes its nodes
     outside its flat zones from here (cut exactly at the zone ends by :func:`poly_points`).
@@ -357,8 +357,9 @@ def round_nodes(
     nodes = _ROUND_CACHE.get(rail, (float(R), float(step)), x0, x1)
     if nodes is not None:
         return nodes
-    lo = min(x0, float(rail.x[0]) - 0.05)
-    hi = max(x1, float(rail.x[-1]) + 0.05)
+    poly = rail_polyline(rail, x0, x1, R)
+    lo = min(x0, float(poly.vx[1]) - 0.05)
+    hi = max(x1, float(poly.vx[-2]) + 0.05)
     poly = rail_polyline(rail, lo, hi, R)
     nodes = merge_close(
         _tabulate_poly(lo, hi, max(math.ceil((hi - lo) / step), 2), R, poly.vx, poly.vy, 16)
