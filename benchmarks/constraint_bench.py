@@ -119,6 +119,13 @@ def run(repeat: int = 5, general: bool = True) -> list[dict[str, float | str]]:
             general,
         ),
         (
+            "rounded flat 80 mm, 1 m, 0.1 mm step rail",
+            WheelOutline.rounded_flat(0.46, 0.08, 0.08**2 / (16 * 0.46)),
+            RailProfile.step(1e-4, 0.5),
+            1.0,
+            general,
+        ),
+        (
             "round wheel, 10 m sampled rail at 0.1 mm",
             WheelOutline.round(0.475),
             long_rail,
