@@ -17,7 +17,9 @@ Which method (one module each, all compiled with numba):
   (:mod:`sim_core.constraint.flat_rail`);
 - a round wheel on a polyline rail (sampled, file, dented, step): the envelope of arcs and
   lines in closed form (:mod:`sim_core.constraint.round_polyline`);
-- an out-of-round wheel on a flat or gentle cosine rail: the piece sweep
+- an out-of-round wheel on a flat or gentle cosine rail, and an ideal flat on a cosine (its
+  chord cut into the rail's crest windows, each in closed form,
+  :mod:`sim_core.constraint.flat_cosine`): the piece sweep
   (:mod:`sim_core.constraint.wheel_pieces`);
 - an out-of-round wheel on a sampled rail: the wheel's pieces against the rail's
   segments inside the stretches where the out-of-roundness can reach the contact, the

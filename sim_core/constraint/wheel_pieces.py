@@ -45,6 +45,12 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from sim_core.constraint.flat_cosine import (
+    crest_centre,
+    crest_contact,
+    crest_index,
+    supports_flat_cosine,
+)
 from sim_core.constraint.nodes import (
     HERMITE_TOL,
     MAX_STEPS,
@@ -88,6 +94,10 @@ PIECE_ARC = 3
 TIE = 1e-18
 """Values (m) of two features closer than this are a tie (the change is at that end)."""
 
+CREST = 1 << 40
+"""Feature code step of a chord's crest window on a cosine: the interior of piece g in the
+window of crest j is the feature 2g + CREST·j (:mod:`sim_core.constraint.flat_cosine`)."""
+
 
 class PiecesCase(NamedTuple):
     """A wheel's piece table on a smooth rail, as the compiled sweep reads it."""
@@ -115,13 +125,14 @@ def supports(wheel: WheelOutline, rail: RailProfile) -> bool:
     """True if the piece sweep applies (G unimodal on every convex piece).
 
     Any out-of-round wheel on a flat rail; a sampled wheel (pieces curved like the
-    wheel, 1/R) on a cosine whose curvature a(2π/λ)² is at most ``0.1/R``. A flat's
-    chord (straight) or a haversine near its inflections on a curved rail is not
-    unimodal: those keep the general ψ-search.
+    wheel, 1/R) on a cosine whose curvature a(2π/λ)² is at most ``0.1/R``; an ideal flat
+    on a cosine (:func:`~sim_core.constraint.flat_cosine.supports_flat_cosine`: the chord
+    is cut into crest windows, each solved in closed form). A haversine near its
+    inflections on a curved rail is not unimodal: it keeps the general ψ-search.
     """
     if wheel.kind == "round":
         return False
-    if rail.kind == "flat":
+    if rail.kind == "flat" or supports_flat_cosine(wheel, rail):
         return True
     if rail.kind == "cosine" and wheel.kind == "sampled":
         k = TWO_PI / rail.wavelength
@@ -304,6 +315,20 @@ def _slope_vertex(R: float, psi: float, dr: float, y1: float) -> float:
     return y1 * (1.0 - rho * math.cos(psi) / R) + rho * math.sin(psi) / R
 
 
+@numba.njit(cache=True, inline="always")
+def _decode(f: int) -> tuple[int, int]:
+    """(feature without its crest, crest j) of a feature code."""
+    j = (f + CREST // 2) // CREST
+    return f - j * CREST, j
+
+
+@numba.njit(cache=True, inline="always")
+def _windowed(pc: PiecesCase, g: int) -> bool:
+    """True if piece g is a chord on a cosine (solved per crest window)."""
+    k, _ = _shift(g, pc.n)
+    return pc.rc == RAIL_COSINE and int(pc.P[k, _KIND]) == PIECE_CHORD
+
+
 @numba.njit(cache=True)
 def _vertex(
     pc: PiecesCase,
@@ -311,9 +336,18 @@ def _vertex(
     x: float,
     phi: float,
 ) -> tuple[float, float, float]:
-    """(value, slope, x_D) of vertex feature v = 2g + 1 (the hi end of piece g) at x."""
+    """(value, slope, x_D) of vertex feature v = 2g + 1 (the hi end of piece g) at x.
+
+    A chord's corner on a cosine is taken on the arc's side (r = R exactly), as the arc
+    evaluates it: the two sides of a tie then compare equal."""
     P, n, R, rc, ra, rl = pc.P, pc.n, pc.R, pc.rc, pc.ra, pc.rl
     g = (v - 1) // 2
+    if _windowed(pc, g):
+        k, sh = _shift(g + 1, n)
+        u = P[k, _T0]
+        psi = u + sh - phi
+        G, _, _, xd, dr, _, y1 = _obj(P, k, R, rc, ra, rl, x, psi, u)
+        return G, _slope_vertex(R, psi, dr, y1), xd
     k, sh = _shift(g, n)
     u = P[k, _T1]
     psi = u + sh - phi
@@ -340,6 +374,54 @@ def _interior(
 
 
 @numba.njit(cache=True)
+def _chord_window(
+    pc: PiecesCase,
+    g: int,
+    j: int,
+    x: float,
+    phi: float,
+) -> tuple[float, int, float, float]:
+    """(max over the chord g inside crest j's concave window, feature, slope, x_D) at x; -inf
+    if the chord does not reach the window. G is concave there: the maximum is at a corner
+    (vertex feature), at the crest's contact (interior feature 2g + CREST·j) or at a rail
+    inflection (same code: never the wheel's contact, G rises beyond it)."""
+    P, n, R, rc, ra, rl = pc.P, pc.n, pc.R, pc.rc, pc.ra, pc.rl
+    k, sh = _shift(g, n)
+    lo = P[k, _T0] + sh - phi
+    hi = P[k, _T1] + sh - phi
+    G0, s0, xd0 = _vertex(pc, 2 * g - 1, x, phi)
+    G1, s1, xd1 = _vertex(pc, 2 * g + 1, x, phi)
+    d0 = R * math.cos(lo)
+    m = (R * math.cos(hi) - d0) / (xd1 - xd0)
+    c = crest_centre(ra, rl, j)
+    wa = max(xd0, c - 0.25 * rl)
+    wb = min(xd1, c + 0.25 * rl)
+    fi = 2 * g + CREST * j
+    best, bf, bs, bx = -math.inf, fi, 0.0, 0.0
+    if wa >= wb:
+        return best, bf, bs, bx
+    u = crest_contact(m, ra, rl)
+    for i in range(3):
+        if i == 0:
+            xw = wa
+        elif i == 1:
+            xw = wb
+        else:
+            xw = c + u
+            if not (wa < xw < wb):  # false for nan
+                continue
+        if i < 2 and xw == (xd0 if i == 0 else xd1):
+            v, f, s = (G0, 2 * g - 1, s0) if i == 0 else (G1, 2 * g + 1, s1)
+        else:
+            psi = math.atan2(xw - x, d0 + m * (xw - xd0))
+            v, _, _, xw, _, r1, y1 = _obj(P, k, R, rc, ra, rl, x, psi, psi + phi - sh)
+            f, s = fi, _slope_interior(R, psi, r1, y1)
+        if v > best:
+            best, bf, bs, bx = v, f, s, xw
+    return best, bf, bs, bx
+
+
+@numba.njit(cache=True)
 def _pmax(
     pc: PiecesCase,
     g: int,
@@ -353,6 +435,19 @@ def _pmax(
     u1 = P[k, _T1]
     lo = u0 + sh - phi
     hi = u1 + sh - phi
+    if rc == RAIL_COSINE and int(P[k, _KIND]) == PIECE_CHORD:
+        # the corners (G is convex between the crests' concave windows), then each window
+        # in closed form
+        G0, s0, xa = _vertex(pc, 2 * g - 1, x, phi)
+        G1, s1, xb = _vertex(pc, 2 * g + 1, x, phi)
+        best, bf, bs, bx = G0, 2 * g - 1, s0, xa
+        if best < G1:
+            best, bf, bs, bx = G1, 2 * g + 1, s1, xb
+        for j in range(crest_index(ra, rl, xa), crest_index(ra, rl, xb) + 1):
+            v, f, s, xd = _chord_window(pc, g, j, x, phi)
+            if v > best:
+                best, bf, bs, bx = v, f, s, xd
+        return best, bf, bs, bx
     if rc == RAIL_FLAT and int(P[k, _KIND]) == PIECE_LINEAR:
         # G' = b cos ψ - ρ sin ψ: the maximum is at tan ψ = b/ρ(ψ + φ) (a contraction, factor
         # (b/ρ)² ~ 1e-5) clamped to the piece (G is unimodal on it)
@@ -453,19 +548,30 @@ def _feature(
     """(value, slope, x_D, feature actually taken) of feature f's piece group at x.
 
     A vertex's group is its two pieces, an interior's group its piece: the maximum over the
-    group (continuous and piecewise smooth in x), with the feature that attains it.
+    group (continuous and piecewise smooth in x), with the feature that attains it. A chord on
+    a cosine counts by crest windows: an interior's group is its window, and a vertex's group
+    has the vertex itself in place of the chord.
     """
     R = pc.R
     phi = phase + x / R
-    if f % 2 == 0:
-        v, ff, s, xd = _pmax(pc, f // 2, x, phi)
+    base, j = _decode(f)
+    if base % 2 == 0:
+        if _windowed(pc, base // 2):
+            v, ff, s, xd = _chord_window(pc, base // 2, j, x, phi)
+        else:
+            v, ff, s, xd = _pmax(pc, base // 2, x, phi)
         return v, s, xd, ff
-    g = (f - 1) // 2
-    v, ff, s, xd = _pmax(pc, g, x, phi)
-    v2, f2, s2, xd2 = _pmax(pc, g + 1, x, phi)
-    if v2 > v:
-        return v2, s2, xd2, f2
-    return v, s, xd, ff
+    g = (base - 1) // 2
+    best, bf, bs, bx = -math.inf, f, 0.0, 0.0
+    for gg in (g, g + 1):
+        if _windowed(pc, gg):
+            v, s, xd = _vertex(pc, base, x, phi)
+            ff = base
+        else:
+            v, ff, s, xd = _pmax(pc, gg, x, phi)
+        if v > best:
+            best, bf, bs, bx = v, ff, s, xd
+    return best, bs, bx, bf
 
 
 @numba.njit(cache=True)
@@ -591,18 +697,21 @@ def tabulate_pieces_kernel(
         fl = fr = 0
         if fA != fB:
             xt = math.nan
-            if abs(fA - fB) == 1:
+            bA, bB = _decode(fA)[0], _decode(fB)[0]
+            if abs(bA - bB) == 1:
                 # tangent handover between a piece's interior and its end vertex
-                g = fA // 2 if fA % 2 == 0 else fB // 2
-                vtx = fB if fA % 2 == 0 else fA
+                g = bA // 2 if bA % 2 == 0 else bB // 2
+                vtx = bB if bA % 2 == 0 else bA
                 xt = _root_edge(pc, phase, g, vtx == 2 * g + 1, xa, xb)
                 if not math.isnan(xt):
                     vv, ss, xdv = _vertex(pc, vtx, xt, phase + xt / R)
                     vg, fg, sg, xdg, g0 = _global(pc, phase, drg, xt, hint)
-                    if fg != fA and fg != fB and vg > vv + 1e-15:
-                        xn, vn, sl, sr, xdn, fl, fr = xt, vg, sg, sg, xdg, fg, fg
-                    else:
+                    if vg <= vv + 1e-15:
                         xn, vn, sl, sr, xdn, fl, fr = xt, vv, ss, ss, xdv, fA, fB
+                    elif fg != fA and fg != fB:
+                        xn, vn, sl, sr, xdn, fl, fr = xt, vg, sg, sg, xdg, fg, fg
+                    # else G' = 0 at a vertex that does not carry the wheel (a chord's corner
+                    # outside its crest window on a cosine): the change is a jump, found below
                     hint = g0
             if math.isnan(xn):
                 xt = _root_cross(pc, phase, fA, fB, xa, xb)
