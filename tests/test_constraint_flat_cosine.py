@@ -18,10 +18,10 @@ from numpy.typing import NDArray
 
 from sim_core.constraint import evaluate_exact, tabulate_constraint
 from sim_core.constraint.flat_cosine import crest_contact, supports_flat_cosine
-from sim_core.constraint.table import ConstraintTable
 from sim_core.constraint.wheel_pieces import supports
 from sim_core.rail import RailProfile
 from sim_core.wheel import WheelOutline
+from tests.test_constraint_fast import strong_kinks
 
 RAILS = {
     "site": (0.46, RailProfile.cosine(2e-6, 0.06)),
@@ -45,13 +45,6 @@ def brute(
         rho = wheel.radius_at(psi + phi)
         out[i] = np.max(rail.height(xc + rho * np.sin(psi)) + rho * np.cos(psi)) - Rn
     return out
-
-
-def strong_kinks(t: ConstraintTable, lo: float, hi: float) -> NDArray[np.float64]:
-    i = np.searchsorted(t.x, t.kinks)
-    big = np.abs(t.slope_right[i] - t.slope_left[i]) > 1e-6
-    k = t.kinks[big]
-    return np.sort(k[(k > lo) & (k < hi)])
 
 
 @pytest.mark.parametrize("rail_name", list(RAILS))
