@@ -7,6 +7,10 @@ Starts ``railtwin serve`` in a child process on a free loopback port, streams
 the sample train at its real timing (one line per wheel: peak force, contact
 losses, dent), stops the service cleanly and prints where its MCAP log and
 Rerun recording are. No network beyond loopback, no viewer needed.
+
+The demo streams the same sample train every time, so each run starts the twin
+on a fresh rail state of its own (a temporary ``--state`` directory): with the
+site's persistent state its passage ids would be refused as already applied.
 """
 
 from __future__ import annotations
@@ -14,6 +18,7 @@ from __future__ import annotations
 import argparse
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 from service.service_process import ServiceProcess
@@ -33,8 +38,10 @@ def main(argv: list[str] | None = None) -> int:
     endpoint = free_tcp_endpoint()
     print(f"demo: starting railtwin serve for site {site.site_id!r} on {endpoint} "
           "(the first start compiles the physics: allow a minute)", flush=True)
-    with ServiceProcess(args.site, listen=endpoint, recordings=args.recordings,
-                        start_timeout=300.0) as svc:
+    with tempfile.TemporaryDirectory(prefix="railtwin-demo-state-") as state, ServiceProcess(
+        args.site, listen=endpoint, recordings=args.recordings, start_timeout=300.0,
+        extra_args=("--state", state),
+    ) as svc:
         saved = args.recordings / "demo-measured.json"
         args.recordings.mkdir(parents=True, exist_ok=True)
         measured_cmd = [sys.executable, "-m", "service.measured_feeder", "--train",
