@@ -71,7 +71,7 @@ from sim_core.constraint.nodes import (
     table_from_nodes,
 )
 from sim_core.constraint.rail_polyline import RailPolyline, rail_polyline
-from sim_core.constraint.roots import newton_max
+from sim_core.constraint.roots import newton_max_from
 from sim_core.constraint.round_polyline import poly_points, round_nodes
 from sim_core.constraint.table import ConstraintTable
 from sim_core.constraint.wheel_pieces import (
@@ -318,16 +318,35 @@ def _stationary(
     xj: float,
     yj: float,
     s: float,
+    gplo: float = math.nan,
+    gphi: float = math.nan,
 ) -> tuple[float, float, float, float]:
-    """(G, ψ, x_D, r') at the root of G' in (lo, hi) (G'(lo) > 0 > G'(hi)): safeguarded Newton."""
+    """(G, ψ, x_D, r') at the root of G' in (lo, hi) (G'(lo) > 0 > G'(hi)): safeguarded Newton,
+    from the secant of G' between the ends if their G' (``gplo``, ``gphi``) are given."""
     if int(P[k, _KIND]) == PIECE_ARC:
         psi = math.atan(s)
         g, _, _, xd, _, r1 = _g_line(P, k, sh, R, x, phi, psi, xj, yj, s)
         return g, psi, xd, r1
+    start = lo + (hi - lo) * gplo / (gplo - gphi) if gplo > 0.0 > gphi else 0.5 * (lo + hi)
     # a Newton step of 1e-9 rad leaves ~1e-18 rad (quadratic convergence)
-    psi, out = newton_max(_g_line_at, lo, hi, (P, k, sh, R, x, phi, xj, yj, s), 1e-9, 0.0, True)
+    psi, out = newton_max_from(
+        _g_line_at, lo, hi, start, (P, k, sh, R, x, phi, xj, yj, s), 1e-9, 0.0, True
+    )
     g, _, _, xd, _, r1 = out
     return g, psi, xd, r1
+
+
+@numba.njit(cache=True, inline="always")
+def _at_vertex(
+    R: float, x: float, yv: float, psi: float, dr: float, r1: float
+) -> tuple[float, float, float, float]:
+    """(G, A, B, x_D) of a wheel point (ψ, r - R, r') over the rail vertex of height yv:
+    G' on a segment of slope s is s·A + B there."""
+    rho = R + dr
+    sp = math.sin(psi)
+    cp = math.cos(psi)
+    h = math.sin(0.5 * psi)
+    return yv + dr * cp - 2.0 * R * h * h, r1 * sp + rho * cp, r1 * cp - rho * sp, x + rho * sp
 
 
 @numba.njit(cache=True)
@@ -340,55 +359,90 @@ def _cell(
     clip: float,
 ) -> tuple[float, int, int, int, float, float]:
     """max of G over cell (piece g, segment j) at x: (value, type, g, r, slope, x_D); type -1 if empty."""
-    P, n, R, vx, vy, sl = pl.P, pl.n, pl.R, pl.vx, pl.vy, pl.sl
+    P, n, R = pl.P, pl.n, pl.R
     k, sh = _shift(g, n)
     a = max(P[k, _T0] + sh - phi, -clip)
     b = min(P[k, _T1] + sh - phi, clip)
     if not a < b:
         return -np.inf, -1, 0, 0, 0.0, 0.0
-    xj = vx[j]
-    xj1 = vx[j + 1]
-    yj = vy[j]
-    s = sl[j]
     dra, _, _ = _rho(P, k, R, a + phi - sh)
     drb, _, _ = _rho(P, k, R, b + phi - sh)
     xa = x + (R + dra) * math.sin(a)
     xb = x + (R + drb) * math.sin(b)
+    out = _cell_in(pl, g, k, sh, j, x, phi, a, b, xa, xb, -1, 0.0, 0.0, 0.0)
+    return out[0], out[1], out[2], out[3], out[4], out[5]
+
+
+@numba.njit(cache=True)
+def _cell_in(
+    pl: PolylineCase,
+    g: int,
+    k: int,
+    sh: float,
+    j: int,
+    x: float,
+    phi: float,
+    a: float,
+    b: float,
+    xa: float,
+    xb: float,
+    cv: int,
+    cpsi: float,
+    cdr: float,
+    cr1: float,
+) -> tuple[float, int, int, int, float, float, int, float, float, float]:
+    """:func:`_cell` on piece g = (k, turn shift sh) clipped to ψ in [a, b] (wheel points at
+    x_D = xa, xb), with the wheel point over rail vertex ``cv`` known (ψ, r - R, r') from the
+    neighbouring cell (-1: none); returns the cell's best and the wheel point over its hi rail
+    vertex (j + 1, or -1 if the cell ends at a wheel vertex) for the next cell."""
+    P, R, vx, vy, sl = pl.P, pl.R, pl.vx, pl.vy, pl.sl
+    xj = vx[j]
+    xj1 = vx[j + 1]
+    s = sl[j]
     if xb < xj or xa > xj1:
-        return -np.inf, -1, 0, 0, 0.0, 0.0
-    # lo end
+        return -np.inf, -1, 0, 0, 0.0, 0.0, -1, 0.0, 0.0, 0.0
+    # lo end: a wheel vertex on the segment or the wheel point over rail vertex j
     if xa >= xj:
         plo = a
         tlo, glo, rlo = FT_W, g - 1, j
+        dr0, r10, _ = _rho(P, k, R, plo + phi - sh)
+        G0, A0, B0, xd0 = _at_vertex(R, x, 0.0, plo, dr0, r10)
+        G0 += vy[j] + s * (xd0 - xj)
     else:
-        plo = _psi_at(P, k, sh, R, x, phi, xj)
+        if cv == j:
+            plo, dr0, r10 = cpsi, cdr, cr1
+        else:
+            plo = _psi_at(P, k, sh, R, x, phi, xj)
+            dr0, r10, _ = _rho(P, k, R, plo + phi - sh)
         tlo, glo, rlo = FT_V, g, j
+        G0, A0, B0, xd0 = _at_vertex(R, x, vy[j], plo, dr0, r10)
+    hv = -1
     if xb <= xj1:
         phi_ = b
         thi, ghi, rhi = FT_W, g, j
+        dr1, r11, _ = _rho(P, k, R, phi_ + phi - sh)
+        G1, A1, B1, xd1 = _at_vertex(R, x, 0.0, phi_, dr1, r11)
+        G1 += vy[j] + s * (xd1 - xj)
     else:
         phi_ = _psi_at(P, k, sh, R, x, phi, xj1)
+        dr1, r11, _ = _rho(P, k, R, phi_ + phi - sh)
         thi, ghi, rhi = FT_V, g, j + 1
-    G0, gp0, _, xd0, dr0, r10 = _g_line(P, k, sh, R, x, phi, plo, xj, yj, s)
-    G1, gp1, _, xd1, dr1, r11 = _g_line(P, k, sh, R, x, phi, phi_, xj, yj, s)
-    if tlo == FT_V:
-        h = math.sin(0.5 * plo)
-        G0 = vy[j] + dr0 * math.cos(plo) - 2.0 * R * h * h
-    if thi == FT_V:
-        h = math.sin(0.5 * phi_)
-        G1 = vy[j + 1] + dr1 * math.cos(phi_) - 2.0 * R * h * h
+        G1, A1, B1, xd1 = _at_vertex(R, x, vy[j + 1], phi_, dr1, r11)
+        hv = j + 1
+    gp0 = s * A0 + B0
+    gp1 = s * A1 + B1
     convex = P[k, _CONC] == 0.0 and int(P[k, _KIND]) != PIECE_CHORD
     if convex and gp0 > 0.0 and gp1 < 0.0 and plo < phi_:
-        G, psi, xd, r1 = _stationary(P, k, sh, R, x, phi, plo, phi_, xj, yj, s)
+        G, psi, xd, r1 = _stationary(P, k, sh, R, x, phi, plo, phi_, xj, vy[j], s, gp0, gp1)
         if G >= G0 and G >= G1:
-            return G, FT_T, g, j, _slope_tangent(R, psi, r1, s), xd
+            return G, FT_T, g, j, _slope_tangent(R, psi, r1, s), xd, hv, phi_, dr1, r11
     if G0 >= G1:
         if tlo == FT_V:
-            return G0, tlo, glo, rlo, _slope_rail_vertex(R, plo, dr0, r10), xd0
-        return G0, tlo, glo, rlo, _slope_wheel_vertex(R, plo, dr0, s), xd0
+            return G0, tlo, glo, rlo, _slope_rail_vertex(R, plo, dr0, r10), xd0, hv, phi_, dr1, r11
+        return G0, tlo, glo, rlo, _slope_wheel_vertex(R, plo, dr0, s), xd0, hv, phi_, dr1, r11
     if thi == FT_V:
-        return G1, thi, ghi, rhi, _slope_rail_vertex(R, phi_, dr1, r11), xd1
-    return G1, thi, ghi, rhi, _slope_wheel_vertex(R, phi_, dr1, s), xd1
+        return G1, thi, ghi, rhi, _slope_rail_vertex(R, phi_, dr1, r11), xd1, hv, phi_, dr1, r11
+    return G1, thi, ghi, rhi, _slope_wheel_vertex(R, phi_, dr1, s), xd1, hv, phi_, dr1, r11
 
 
 @numba.njit(cache=True)
@@ -541,6 +595,8 @@ def _global(
         hd = P[k, _C0]
         hw = TWO_PI * R / P[k, _C1] if hav else 0.0
         hhalf = 0.5 * P[k, _C1] / R
+        cv = -1  # the wheel point over rail vertex cv (ψ, r - R, r'), from the cell before
+        cpsi = cdr = cr1 = 0.0
         for j in range(ja, jb + 1):
             if g == g0 and j == j0:
                 continue
@@ -570,7 +626,9 @@ def _global(
                 )
                 if bound2 < best:
                     continue
-            v, t, gg, r, s, xd = _cell(pl, g, j, x, phi, psw)
+            v, t, gg, r, s, xd, cv, cpsi, cdr, cr1 = _cell_in(
+                pl, g, k, sh, j, x, phi, a, b, xa, xb, cv, cpsi, cdr, cr1
+            )
             if v > best:
                 best, bt, bg, br, bs, bx = v, t, gg, r, s, xd
     return best, bt, bg, br, bs, bx, g0
@@ -653,6 +711,90 @@ def _handover(tA: int, gA: int, rA: int, tB: int, gB: int, rB: int) -> bool:
     if tB == FT_W:
         return rB == rA and (gB == gA or gB == gA - 1)
     return False
+
+
+@numba.njit(cache=True)
+def _handover_gap(
+    pl: PolylineCase, phase: float, tA: int, gA: int, rA: int, tB: int, gB: int, rB: int, x: float
+) -> float:
+    """At a C¹ handover between a tangent T and an end E of its cell: a smooth function of x,
+    positive where A wins and negative where B wins (G' at E's wheel point on T's segment,
+    signed: the tangent point is inside the cell while G' at a lo end is > 0, at a hi end < 0)."""
+    P, n, R, vx, sl = pl.P, pl.n, pl.R, pl.vx, pl.sl
+    sign = 1.0
+    gT, rT, tE, gE, rE = gA, rA, tB, gB, rB
+    if tA != FT_T:
+        sign = -1.0
+        gT, rT, tE, gE, rE = gB, rB, tA, gA, rA
+    phi = phase + x / R
+    k, sh = _shift(gT, n)
+    if tE == FT_V:
+        psi = _psi_at(P, k, sh, R, x, phi, vx[rE])
+        lo_end = rE == rT
+    else:
+        lo_end = gE == gT - 1
+        psi = (P[k, _T0] if lo_end else P[k, _T1]) + sh - phi
+    dr, r1, _ = _rho(P, k, R, psi + phi - sh)
+    _, A, B, _ = _at_vertex(R, x, 0.0, psi, dr, r1)
+    gp = sl[rT] * A + B
+    return sign * (gp if lo_end else -gp)
+
+
+@numba.njit(cache=True)
+def _change_point(
+    pl: PolylineCase,
+    phase: float,
+    handover: bool,
+    tA: int,
+    gA: int,
+    rA: int,
+    tB: int,
+    gB: int,
+    rB: int,
+    lo: float,
+    hi: float,
+    flo: float,
+    fhi: float,
+    tol: float,
+) -> tuple[float, float]:
+    """The bracket [lo, hi] (width <= tol) of the change from A (f > 0) to B (f < 0) by Illinois
+    false position on f: the difference of the two features' own values, or at a C¹ handover
+    :func:`_handover_gap` (bisection where f is not finite; stops where f is nan, as the
+    bisection on the sign did)."""
+    side = 0
+    for _ in range(200):
+        if not hi - lo > tol:
+            break
+        if math.isfinite(flo) and math.isfinite(fhi) and flo > 0.0 > fhi:
+            m = (lo * fhi - hi * flo) / (fhi - flo)
+        else:
+            m = 0.5 * (lo + hi)
+        if not (lo < m < hi):
+            m = 0.5 * (lo + hi)
+        if m <= lo or m >= hi:
+            break
+        if handover:
+            fm = _handover_gap(pl, phase, tA, gA, rA, tB, gB, rB, m)
+        else:
+            fm = (
+                _feature_eval(pl, phase, tA, gA, rA, m)[0]
+                - _feature_eval(pl, phase, tB, gB, rB, m)[0]
+            )
+        if fm > 0.0:
+            lo, flo = m, fm
+            if side == 1:
+                fhi *= 0.5
+            side = 1
+        elif fm < 0.0:
+            hi, fhi = m, fm
+            if side == -1:
+                flo *= 0.5
+            side = -1
+        elif fm == 0.0:
+            lo = hi = m
+        else:  # neither feature is a candidate here
+            break
+    return lo, hi
 
 
 @numba.njit(cache=True)
@@ -743,26 +885,24 @@ def sweep_kernel(
             nc = _cells_of(tB, gB, rB, cells, nc)
             lo, hi = xa, xb
             third = False
-            direct = not _handover(tA, gA, rA, tB, gB, rB)
+            ho = _handover(tA, gA, rA, tB, gB, rB)
+            direct = not ho
             if direct:
-                # a kink: bisect on the sign of the difference of the two features' own values
                 direct = da >= -1e-15 and db <= 1e-15
-            while direct and hi - lo > 1e-13 * scale:
-                m = 0.5 * (lo + hi)
-                if m <= lo or m >= hi:
-                    break
-                dm = (
-                    _feature_eval(pl, phase, tA, gA, rA, m)[0]
-                    - _feature_eval(pl, phase, tB, gB, rB, m)[0]
+            if direct:
+                # a kink: the sign change of the difference of the two features' own values
+                lo, hi = _change_point(
+                    pl, phase, False, tA, gA, rA, tB, gB, rB, lo, hi, da, db, 1e-13 * scale
                 )
-                if dm > 0.0:
-                    lo = m
-                elif dm < 0.0:
-                    hi = m
-                elif dm == 0.0:
-                    lo = hi = m
-                else:  # neither feature is a candidate here: classify by the cells instead
-                    break
+            elif ho:
+                # a C¹ handover: the tangent point reaching its cell's end
+                fa = _handover_gap(pl, phase, tA, gA, rA, tB, gB, rB, xa)
+                fb = _handover_gap(pl, phase, tA, gA, rA, tB, gB, rB, xb)
+                if fa > 0.0 > fb:
+                    lo, hi = _change_point(
+                        pl, phase, True, tA, gA, rA, tB, gB, rB, lo, hi, fa, fb, 1e-13 * scale
+                    )
+                    direct = True  # located: no bisection on the cells below
             while not direct and hi - lo > 1e-13 * scale:
                 m = 0.5 * (lo + hi)
                 if m <= lo or m >= hi:

@@ -28,7 +28,7 @@ from typing import Any
 
 import numba
 
-__all__ = ["bisect", "illinois", "newton_max"]
+__all__ = ["bisect", "illinois", "newton_max", "newton_max_from"]
 
 
 @numba.njit(cache=True, inline="always")
@@ -98,8 +98,20 @@ def newton_max(
     moved ψ by at most ``atol + rtol·|ψ|`` (only a Newton step, G'' < 0, if ``strict``),
     when the bracket is 4e-16 wide, or on G' = 0 exactly.
     """
+    return newton_max_from(g, lo, hi, 0.5 * (lo + hi), args, atol, rtol, strict)
+
+
+@numba.njit(cache=True, inline="always")
+def newton_max_from(
+    g: Any, lo: float, hi: float, start: float, args: Any, atol: float, rtol: float, strict: bool
+) -> tuple[float, Any]:
+    """:func:`newton_max` from the first iterate ``start`` (the midpoint if it is not inside (lo, hi)).
+
+    A good start saves the steps a midpoint start spends: on a cell 1e-3 rad wide the secant of
+    G' between the ends is within ~1e-7 rad of the maximum, two Newton steps from it.
+    """
     a, b = lo, hi
-    psi = 0.5 * (lo + hi)
+    psi = start if lo < start < hi else 0.5 * (lo + hi)
     out = g(psi, args)
     for _ in range(60):
         gp, gpp = out[1], out[2]
