@@ -320,14 +320,17 @@ def _stationary(
     s: float,
     gplo: float = math.nan,
     gphi: float = math.nan,
+    start: float = math.nan,
 ) -> tuple[float, float, float, float]:
     """(G, ψ, x_D, r') at the root of G' in (lo, hi) (G'(lo) > 0 > G'(hi)): safeguarded Newton,
-    from the secant of G' between the ends if their G' (``gplo``, ``gphi``) are given."""
+    from the secant of G' between the ends if their G' (``gplo``, ``gphi``) are given, else
+    from ``start`` (the root at a nearby x) if it is inside, else from the midpoint."""
     if int(P[k, _KIND]) == PIECE_ARC:
         psi = math.atan(s)
         g, _, _, xd, _, r1 = _g_line(P, k, sh, R, x, phi, psi, xj, yj, s)
         return g, psi, xd, r1
-    start = lo + (hi - lo) * gplo / (gplo - gphi) if gplo > 0.0 > gphi else 0.5 * (lo + hi)
+    if gplo > 0.0 > gphi:
+        start = lo + (hi - lo) * gplo / (gplo - gphi)
     # a Newton step of 1e-9 rad leaves ~1e-18 rad (quadratic convergence)
     psi, out = newton_max_from(
         _g_line_at, lo, hi, start, (P, k, sh, R, x, phi, xj, yj, s), 1e-9, 0.0, True
@@ -667,10 +670,12 @@ def _feature_eval(
     g: int,
     r: int,
     x: float,
-) -> tuple[float, float, float]:
-    """(value, slope, x_D) of feature (t, g, r) at x by its own formula; value -inf where the
+    start: float = math.nan,
+) -> tuple[float, float, float, float]:
+    """(value, slope, x_D, ψ) of feature (t, g, r) at x by its own formula; value -inf where the
     feature is not a real contact candidate (its wheel point off the piece, its rail point off
-    the segment), so that it never exceeds y_C^k."""
+    the segment), so that it never exceeds y_C^k. ``start``: a tangent's ψ at a nearby x (the
+    Newton's first iterate)."""
     P, n, R, vx, vy, sl = pl.P, pl.n, pl.R, pl.vx, pl.vy, pl.sl
     phi = phase + x / R
     k, sh = _shift(g, n)
@@ -678,8 +683,8 @@ def _feature_eval(
         psi = P[k, _T1] + sh - phi
         G, _, _, xd, dr, _ = _g_line(P, k, sh, R, x, phi, psi, vx[r], vy[r], sl[r])
         if xd < vx[r] - 1e-13 or xd > vx[r + 1] + 1e-13:
-            return -np.inf, 0.0, xd
-        return G, _slope_wheel_vertex(R, psi, dr, sl[r]), xd
+            return -np.inf, 0.0, xd, psi
+        return G, _slope_wheel_vertex(R, psi, dr, sl[r]), xd, psi
     lo = P[k, _T0] + sh - phi
     hi = P[k, _T1] + sh - phi
     if t == FT_V:
@@ -687,16 +692,18 @@ def _feature_eval(
         dr, r1, _ = _rho(P, k, R, psi + phi - sh)
         xd = x + (R + dr) * math.sin(psi)
         if psi < lo - 1e-13 or psi > hi + 1e-13:
-            return -np.inf, 0.0, xd
+            return -np.inf, 0.0, xd, psi
         h = math.sin(0.5 * psi)
         G = vy[r] + dr * math.cos(psi) - 2.0 * R * h * h
-        return G, _slope_rail_vertex(R, psi, dr, r1), xd
+        return G, _slope_rail_vertex(R, psi, dr, r1), xd, psi
     lo = max(lo, -CLIP)
     hi = min(hi, CLIP)
-    G, psi, xd, r1 = _stationary(P, k, sh, R, x, phi, lo, hi, vx[r], vy[r], sl[r])
+    G, psi, xd, r1 = _stationary(
+        P, k, sh, R, x, phi, lo, hi, vx[r], vy[r], sl[r], math.nan, math.nan, start
+    )
     if not (lo <= psi <= hi) or xd < vx[r] - 1e-13 or xd > vx[r + 1] + 1e-13:
-        return -np.inf, 0.0, xd
-    return G, _slope_tangent(R, psi, r1, sl[r]), xd
+        return -np.inf, 0.0, xd, psi
+    return G, _slope_tangent(R, psi, r1, sl[r]), xd, psi
 
 
 @numba.njit(cache=True)
@@ -762,6 +769,7 @@ def _change_point(
     :func:`_handover_gap` (bisection where f is not finite; stops where f is nan, as the
     bisection on the sign did)."""
     side = 0
+    psa = psb = math.nan  # the features' ψ at the last x (a tangent's Newton starts there)
     for _ in range(200):
         if not hi - lo > tol:
             break
@@ -776,10 +784,9 @@ def _change_point(
         if handover:
             fm = _handover_gap(pl, phase, tA, gA, rA, tB, gB, rB, m)
         else:
-            fm = (
-                _feature_eval(pl, phase, tA, gA, rA, m)[0]
-                - _feature_eval(pl, phase, tB, gB, rB, m)[0]
-            )
+            va, _, _, psa = _feature_eval(pl, phase, tA, gA, rA, m, psa)
+            vb, _, _, psb = _feature_eval(pl, phase, tB, gB, rB, m, psb)
+            fm = va - vb
         if fm > 0.0:
             lo, flo = m, fm
             if side == 1:
@@ -918,8 +925,8 @@ def sweep_kernel(
                     break
             if not third:
                 xs = 0.5 * (lo + hi)
-                va, sa, _ = _feature_eval(pl, phase, tA, gA, rA, xs)
-                vb, sb, xdb = _feature_eval(pl, phase, tB, gB, rB, xs)
+                va, sa, _, _ = _feature_eval(pl, phase, tA, gA, rA, xs)
+                vb, sb, xdb, _ = _feature_eval(pl, phase, tB, gB, rB, xs)
                 vg, tg, gg, rg, _, _, _ = _global(pl, ymax, drg, phase, xs, hint, tA, gA, rA)
                 top = max(va, vb)
                 isab = (tg == tA and gg == gA and rg == rA) or (tg == tB and gg == gB and rg == rB)
