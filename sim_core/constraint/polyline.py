@@ -250,6 +250,43 @@ def _psi_at(
 
 
 @numba.njit(cache=True)
+def _vertex_point(
+    P: NDArray[np.float64], k: int, sh: float, R: float, x: float, phi: float, xv: float
+) -> tuple[float, float, float, float, float, float]:
+    """(ψ, r - R, r', sin ψ, cos ψ, 1 - cos ψ) of the wheel point of piece k (turn shift sh)
+    over the rail position xv: :func:`_psi_at`, with the haversine's last Newton step (<= 1e-9
+    rad) carried into r, r', sin and cos to second order (an error ~1e-27) instead of a new
+    evaluation."""
+    if int(P[k, _KIND]) == PIECE_HAVERSINE:
+        u = (xv - x) / R
+        psi = math.asin(min(max(u, -1.0), 1.0))
+        for _ in range(12):
+            dr, r1, r2 = _rho(P, k, R, psi + phi - sh)
+            rho = R + dr
+            sp = math.sin(psi)
+            cp = math.cos(psi)
+            d = (x + rho * sp - xv) / (r1 * sp + rho * cp)
+            if abs(d) <= 1e-9:
+                h = math.sin(0.5 * psi)
+                omc = 2.0 * h * h
+                q = 1.0 - 0.5 * d * d
+                return (
+                    psi - d,
+                    dr - r1 * d + 0.5 * r2 * d * d,
+                    r1 - r2 * d,
+                    sp * q - cp * d,
+                    cp * q + sp * d,
+                    omc - sp * d + 0.5 * cp * d * d,
+                )
+            psi -= d
+    else:
+        psi = _psi_at(P, k, sh, R, x, phi, xv)
+    dr, r1, _ = _rho(P, k, R, psi + phi - sh)
+    h = math.sin(0.5 * psi)
+    return psi, dr, r1, math.sin(psi), math.cos(psi), 2.0 * h * h
+
+
+@numba.njit(cache=True)
 def _g_line(
     P: NDArray[np.float64],
     k: int,
@@ -352,6 +389,20 @@ def _at_vertex(
     return yv + dr * cp - 2.0 * R * h * h, r1 * sp + rho * cp, r1 * cp - rho * sp, x + rho * sp
 
 
+VertexPoint = tuple[float, float, float, float, float, float]
+"""A wheel point over a rail vertex: (ψ, r - R, r', sin ψ, cos ψ, 1 - cos ψ)."""
+NO_POINT: VertexPoint = (0.0, 0.0, 0.0, 0.0, 1.0, 0.0)
+"""A placeholder :data:`VertexPoint` (no rail vertex)."""
+
+
+@numba.njit(cache=True, inline="always")
+def _at_point(R: float, x: float, yv: float, vp: VertexPoint) -> tuple[float, float, float, float]:
+    """:func:`_at_vertex` from a :func:`_vertex_point` (its sines and cosines kept)."""
+    _, dr, r1, sp, cp, omc = vp
+    rho = R + dr
+    return yv + dr * cp - R * omc, r1 * sp + rho * cp, r1 * cp - rho * sp, x + rho * sp
+
+
 @numba.njit(cache=True)
 def _cell(
     pl: PolylineCase,
@@ -372,7 +423,7 @@ def _cell(
     drb, _, _ = _rho(P, k, R, b + phi - sh)
     xa = x + (R + dra) * math.sin(a)
     xb = x + (R + drb) * math.sin(b)
-    out = _cell_in(pl, g, k, sh, j, x, phi, a, b, xa, xb, -1, 0.0, 0.0, 0.0)
+    out = _cell_in(pl, g, k, sh, j, x, phi, a, b, xa, xb, -1, NO_POINT)
     return out[0], out[1], out[2], out[3], out[4], out[5]
 
 
@@ -390,20 +441,18 @@ def _cell_in(
     xa: float,
     xb: float,
     cv: int,
-    cpsi: float,
-    cdr: float,
-    cr1: float,
-) -> tuple[float, int, int, int, float, float, int, float, float, float]:
+    cvp: VertexPoint,
+) -> tuple[float, int, int, int, float, float, int, VertexPoint]:
     """:func:`_cell` on piece g = (k, turn shift sh) clipped to ψ in [a, b] (wheel points at
-    x_D = xa, xb), with the wheel point over rail vertex ``cv`` known (ψ, r - R, r') from the
-    neighbouring cell (-1: none); returns the cell's best and the wheel point over its hi rail
+    x_D = xa, xb), with the wheel point over rail vertex ``cv`` known (``cvp``, from
+    :func:`_vertex_point`) from the neighbouring cell (-1: none); returns the cell's best and the wheel point over its hi rail
     vertex (j + 1, or -1 if the cell ends at a wheel vertex) for the next cell."""
     P, R, vx, vy, sl = pl.P, pl.R, pl.vx, pl.vy, pl.sl
     xj = vx[j]
     xj1 = vx[j + 1]
     s = sl[j]
     if xb < xj or xa > xj1:
-        return -np.inf, -1, 0, 0, 0.0, 0.0, -1, 0.0, 0.0, 0.0
+        return -np.inf, -1, 0, 0, 0.0, 0.0, -1, NO_POINT
     # lo end: a wheel vertex on the segment or the wheel point over rail vertex j
     if xa >= xj:
         plo = a
@@ -412,14 +461,12 @@ def _cell_in(
         G0, A0, B0, xd0 = _at_vertex(R, x, 0.0, plo, dr0, r10)
         G0 += vy[j] + s * (xd0 - xj)
     else:
-        if cv == j:
-            plo, dr0, r10 = cpsi, cdr, cr1
-        else:
-            plo = _psi_at(P, k, sh, R, x, phi, xj)
-            dr0, r10, _ = _rho(P, k, R, plo + phi - sh)
+        vp0 = cvp if cv == j else _vertex_point(P, k, sh, R, x, phi, xj)
+        plo, dr0, r10 = vp0[0], vp0[1], vp0[2]
         tlo, glo, rlo = FT_V, g, j
-        G0, A0, B0, xd0 = _at_vertex(R, x, vy[j], plo, dr0, r10)
+        G0, A0, B0, xd0 = _at_point(R, x, vy[j], vp0)
     hv = -1
+    vp1 = NO_POINT
     if xb <= xj1:
         phi_ = b
         thi, ghi, rhi = FT_W, g, j
@@ -427,10 +474,10 @@ def _cell_in(
         G1, A1, B1, xd1 = _at_vertex(R, x, 0.0, phi_, dr1, r11)
         G1 += vy[j] + s * (xd1 - xj)
     else:
-        phi_ = _psi_at(P, k, sh, R, x, phi, xj1)
-        dr1, r11, _ = _rho(P, k, R, phi_ + phi - sh)
+        vp1 = _vertex_point(P, k, sh, R, x, phi, xj1)
+        phi_, dr1, r11 = vp1[0], vp1[1], vp1[2]
         thi, ghi, rhi = FT_V, g, j + 1
-        G1, A1, B1, xd1 = _at_vertex(R, x, vy[j + 1], phi_, dr1, r11)
+        G1, A1, B1, xd1 = _at_point(R, x, vy[j + 1], vp1)
         hv = j + 1
     gp0 = s * A0 + B0
     gp1 = s * A1 + B1
@@ -438,14 +485,15 @@ def _cell_in(
     if convex and gp0 > 0.0 and gp1 < 0.0 and plo < phi_:
         G, psi, xd, r1 = _stationary(P, k, sh, R, x, phi, plo, phi_, xj, vy[j], s, gp0, gp1)
         if G >= G0 and G >= G1:
-            return G, FT_T, g, j, _slope_tangent(R, psi, r1, s), xd, hv, phi_, dr1, r11
+            return G, FT_T, g, j, _slope_tangent(R, psi, r1, s), xd, hv, vp1
     if G0 >= G1:
         if tlo == FT_V:
-            return G0, tlo, glo, rlo, _slope_rail_vertex(R, plo, dr0, r10), xd0, hv, phi_, dr1, r11
-        return G0, tlo, glo, rlo, _slope_wheel_vertex(R, plo, dr0, s), xd0, hv, phi_, dr1, r11
+            sl0 = _slope_rail_vertex(R, plo, dr0, r10)
+            return G0, tlo, glo, rlo, sl0, xd0, hv, vp1
+        return G0, tlo, glo, rlo, _slope_wheel_vertex(R, plo, dr0, s), xd0, hv, vp1
     if thi == FT_V:
-        return G1, thi, ghi, rhi, _slope_rail_vertex(R, phi_, dr1, r11), xd1, hv, phi_, dr1, r11
-    return G1, thi, ghi, rhi, _slope_wheel_vertex(R, phi_, dr1, s), xd1, hv, phi_, dr1, r11
+        return G1, thi, ghi, rhi, _slope_rail_vertex(R, phi_, dr1, r11), xd1, hv, vp1
+    return G1, thi, ghi, rhi, _slope_wheel_vertex(R, phi_, dr1, s), xd1, hv, vp1
 
 
 @numba.njit(cache=True)
@@ -598,8 +646,8 @@ def _global(
         hd = P[k, _C0]
         hw = TWO_PI * R / P[k, _C1] if hav else 0.0
         hhalf = 0.5 * P[k, _C1] / R
-        cv = -1  # the wheel point over rail vertex cv (ψ, r - R, r'), from the cell before
-        cpsi = cdr = cr1 = 0.0
+        cv = -1  # the wheel point over rail vertex cv, from the cell before
+        cvp = NO_POINT
         for j in range(ja, jb + 1):
             if g == g0 and j == j0:
                 continue
@@ -629,9 +677,7 @@ def _global(
                 )
                 if bound2 < best:
                     continue
-            v, t, gg, r, s, xd, cv, cpsi, cdr, cr1 = _cell_in(
-                pl, g, k, sh, j, x, phi, a, b, xa, xb, cv, cpsi, cdr, cr1
-            )
+            v, t, gg, r, s, xd, cv, cvp = _cell_in(pl, g, k, sh, j, x, phi, a, b, xa, xb, cv, cvp)
             if v > best:
                 best, bt, bg, br, bs, bx = v, t, gg, r, s, xd
     return best, bt, bg, br, bs, bx, g0
