@@ -159,11 +159,16 @@ def test_lowest_speed_edge() -> None:
 # --- the service's limits, on a twin with the stub physics ---------------------------------
 
 
+PROBE_ID = "rig-probe"
+"""Passage id of the rig's readiness probes (answered with an error that ``Out`` sets aside)."""
+
+
 @dataclass
 class Out:
     results: dict[str, PassageResult] = field(default_factory=dict)
     errors: list[tuple[ServiceError, int]] = field(default_factory=list)
     lock: threading.Lock = field(default_factory=threading.Lock)
+    probed: threading.Event = field(default_factory=threading.Event)
 
     def __call__(self, sample: zenoh.Sample) -> None:
         kind = KEYS.kind_of(str(sample.key_expr))
@@ -173,7 +178,11 @@ class Out:
                 r = PassageResult.model_validate_json(data)
                 self.results[r.passage_id] = r
             elif kind == "error":
-                self.errors.append((ServiceError.model_validate_json(data), len(data)))
+                err = ServiceError.model_validate_json(data)
+                if err.passage_id == PROBE_ID:
+                    self.probed.set()
+                else:
+                    self.errors.append((err, len(data)))
 
     def wait(self, n_results: int, n_errors: int, timeout: float = 20.0) -> None:
         deadline = time.monotonic() + timeout
@@ -220,6 +229,12 @@ def rig(request: pytest.FixtureRequest) -> Iterator[Rig]:
         while not (pub.matching_status.matching and mpub.matching_status.matching):
             assert time.monotonic() < deadline
             time.sleep(0.02)
+        # The publisher matching says the twin hears us, not that the twin's answers reach
+        # our subscriber yet (declarations travel each way on their own): probe until one
+        # answer has come back.
+        while not out.probed.wait(0.2):
+            assert time.monotonic() < deadline, "the twin's answers never reached the rig"
+            pub.put(json.dumps({"passage_id": PROBE_ID}))
         try:
             yield Rig(twin, client, pub, mpub, out)
         finally:
