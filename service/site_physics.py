@@ -27,7 +27,7 @@ from schemas.site import SiteConfig
 from service import physics_inputs
 from sim_core.constraint import warm_up_constraint
 from sim_core.constraint.table import ConstraintTable
-from sim_core.contact_laws import ContactLaw, ContactModel
+from sim_core.contact_laws import ContactModel
 from sim_core.passage import PassageOutput, PassageSpec, simulate_passage
 from sim_core.rail import RailProfile
 from sim_core.rail_pass import ConstraintTables, DentedRail, TableChoice, rail_pass
@@ -36,11 +36,6 @@ from sim_core.wheel import WheelOutline
 
 RAIL_STATE_SPACING = 1e-3
 """m between the samples of the published rail state."""
-
-
-def rail_profile(site: SiteConfig) -> RailProfile:
-    """The site's rail as a ``sim_core`` profile (a file rail is resolved by ``service.site``)."""
-    return physics_inputs.rail_profile(site.rail)
 
 
 def wheel_outline(p: WheelPassage) -> WheelOutline:
@@ -54,9 +49,8 @@ class SitePhysics:
     def __init__(self, site: SiteConfig) -> None:
         self.site = site
         self.material = physics_inputs.material(site.material)
-        self.law = ContactLaw.from_name(site.contact)
         self.foundation = physics_inputs.foundation(site.foundation)
-        self.base_rail = rail_profile(site)
+        self.base_rail = physics_inputs.rail_profile(site.rail)
         # the rail now (base + dents), swapped as a whole so that readers on other threads
         # see a consistent profile and revision
         self._rail = DentedRail.of(self.base_rail, 0.0, site.length)
@@ -77,6 +71,15 @@ class SitePhysics:
                                                 mass=passage.mass)
         return model
 
+    def _spec(self, passage: WheelPassage, length: float) -> PassageSpec:
+        """The passage over ``length`` m of the site, from static equilibrium."""
+        return PassageSpec(
+            mass=passage.mass, load=passage.load, speed=passage.speed,
+            duration=length / passage.speed, sample_rate=self.site.output_sample_rate,
+            contact=self.contact_model(passage), foundation=self.foundation, initial=None,
+            rtol=self.site.rtol,
+        )
+
     def warm_up(self) -> float:
         """Compile and exercise the physics once (no effect on the rail); returns seconds."""
         start = time.perf_counter()
@@ -84,13 +87,8 @@ class SitePhysics:
             passage_id="warm-up", train_id="warm-up", axle_index=0, side="right", timestamp=0.0,
             speed=40.0, load=50000.0, mass=600.0, radius=0.46,
         )
-        spec = PassageSpec(
-            mass=probe.mass, load=probe.load, speed=probe.speed,
-            duration=min(self.site.length, 0.5) / probe.speed,
-            sample_rate=self.site.output_sample_rate, contact=self.contact_model(probe),
-            foundation=self.foundation, initial=None, rtol=self.site.rtol,
-        )
-        simulate_passage(self._table(probe, self._rail), spec)
+        simulate_passage(self._table(probe, self._rail),
+                         self._spec(probe, min(self.site.length, 0.5)))
         # every constraint path a wheel may take, so that no wheel pays for compilation
         warm_up_constraint()
         flat = probe.model_copy(update={"outline": FlatOutline(kind="flat", length=0.03)})
@@ -102,14 +100,8 @@ class SitePhysics:
 
     def simulate(self, passage: WheelPassage) -> PassageResult:
         start = time.perf_counter()
-        site = self.site
         rail = self._rail
-        contact = self.contact_model(passage)
-        spec = PassageSpec(
-            mass=passage.mass, load=passage.load, speed=passage.speed,
-            duration=site.length / passage.speed, sample_rate=site.output_sample_rate,
-            contact=contact, foundation=self.foundation, initial=None, rtol=site.rtol,
-        )
+        spec = self._spec(passage, self.site.length)
         done = rail_pass(wheel_outline(passage), rail, spec, self._tables,
                          TableChoice(passage.phase))
         self._rail = done.rail
