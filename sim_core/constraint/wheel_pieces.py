@@ -45,6 +45,14 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from sim_core.constraint.cosine_cells import (
+    CONCAVE,
+    CONVEX,
+    FALLING,
+    RISING,
+    certified_cells,
+    contact_angle_bound,
+)
 from sim_core.constraint.flat_cosine import (
     crest_centre,
     crest_contact,
@@ -114,6 +122,9 @@ class PiecesCase(NamedTuple):
     """Rail amplitude (m)."""
     rl: float
     """Rail wavelength (m)."""
+    psi_max: float
+    """> 0: the pieces are cells certified for |ψ| ≤ psi_max on a cosine, their shape in the
+    ``concave`` column (:mod:`sim_core.constraint.cosine_cells`); 0: plain pieces."""
 
 
 # columns of the piece table
@@ -121,22 +132,33 @@ _T0, _T1, _KIND, _C0, _C1, _CEN, _CONC, _DRMAX = range(8)
 _NP = 8
 
 
-def supports(wheel: WheelOutline, rail: RailProfile) -> bool:
-    """True if the piece sweep applies (G unimodal on every convex piece).
-
-    Any out-of-round wheel on a flat rail; a sampled wheel (pieces curved like the
-    wheel, 1/R) on a cosine whose curvature a(2π/λ)² is at most ``0.1/R``; an ideal flat
-    on a cosine (:func:`~sim_core.constraint.flat_cosine.supports_flat_cosine`: the chord
-    is cut into crest windows, each solved in closed form). A haversine near its
-    inflections on a curved rail is not unimodal: it keeps the general ψ-search.
-    """
-    if wheel.kind == "round":
-        return False
+def _plain(wheel: WheelOutline, rail: RailProfile) -> bool:
+    """True if the wheel's own pieces are unimodal (or crest-windowed) on this rail."""
     if rail.kind == "flat" or supports_flat_cosine(wheel, rail):
         return True
     if rail.kind == "cosine" and wheel.kind == "sampled":
         k = TWO_PI / rail.wavelength
         return abs(rail.amplitude) * k * k <= 0.1 / wheel.nominal_radius
+    return False
+
+
+def supports(wheel: WheelOutline, rail: RailProfile) -> bool:
+    """True if the piece sweep applies (G has at most one interior maximum on every piece or cell).
+
+    Any out-of-round wheel on a flat rail; a sampled wheel (pieces curved like the
+    wheel, 1/R) on a cosine whose curvature a(2π/λ)² is at most ``0.1/R``; an ideal flat
+    on a cosine (:func:`~sim_core.constraint.flat_cosine.supports_flat_cosine`: the chord
+    is cut into crest windows, each solved in closed form). A rounded flat (its G'' changes
+    sign near the haversine's inflections at a phase-dependent angle) or a sampled wheel on
+    any other cosine: if its pieces cut into certified cells
+    (:func:`~sim_core.constraint.cosine_cells.certified_cells`); else the general ψ-search.
+    """
+    if wheel.kind == "round":
+        return False
+    if _plain(wheel, rail):
+        return True
+    if rail.kind == "cosine" and wheel.kind in ("rounded_flat", "sampled"):
+        return certified_cells(wheel, rail, wheel_pieces(wheel)) is not None
     return False
 
 
@@ -422,6 +444,113 @@ def _chord_window(
 
 
 @numba.njit(cache=True)
+def _gpp_at(
+    psi: float, args: tuple[NDArray[np.float64], int, float, int, float, float, float, float, float]
+) -> float:
+    """G'' of :func:`_obj_at` (its root splits a RISING or FALLING cell)."""
+    return _obj_at(psi, args)[2]
+
+
+@numba.njit(cache=True)
+def _concave_span(pc: PiecesCase, g: int, x: float, phi: float) -> tuple[float, float]:
+    """(a, b): the ψ range of certified cell g within |ψ| ≤ ψ_max where G is concave at x.
+
+    a == b: none, the point where it would start (the concave side's end: the part's maximum
+    stays continuous in x); nan if the cell is convex or outside |ψ| ≤ ψ_max."""
+    P, n, R, rc, ra, rl = pc.P, pc.n, pc.R, pc.rc, pc.ra, pc.rl
+    k, sh = _shift(g, n)
+    a = max(P[k, _T0] + sh - phi, -pc.psi_max)
+    b = min(P[k, _T1] + sh - phi, pc.psi_max)
+    shape = int(P[k, _CONC])
+    if a >= b or shape == CONVEX:
+        return math.nan, math.nan
+    if shape == CONCAVE:
+        return a, b
+    args = (P, k, R, rc, ra, rl, x, phi, sh)
+    ga = _gpp_at(a, args)
+    gb = _gpp_at(b, args)
+    if shape == RISING:  # concave left of the root
+        if ga >= 0.0:
+            return a, a
+        if gb <= 0.0:
+            return a, b
+        return a, illinois(_gpp_at, a, b, args)
+    if gb >= 0.0:  # FALLING: concave right of the root
+        return b, b
+    if ga <= 0.0:
+        return a, b
+    return illinois(_gpp_at, a, b, args), b
+
+
+@numba.njit(cache=True)
+def _concave_max(
+    pc: PiecesCase, g: int, x: float, phi: float, a: float, b: float
+) -> tuple[float, int, float, float]:
+    """(max of G over [a, b] where it is concave, feature, slope, x_D) on cell g at x: an
+    end or the root of G' (safeguarded Newton); a cell end is its vertex feature."""
+    P, n, R, rc, ra, rl = pc.P, pc.n, pc.R, pc.rc, pc.ra, pc.rl
+    k, sh = _shift(g, n)
+    lo = P[k, _T0] + sh - phi
+    hi = P[k, _T1] + sh - phi
+    args = (P, k, R, rc, ra, rl, x, phi, sh)
+    # a cell end at its exact wheel angle (as its vertex evaluates it: ties compare equal)
+    oa = _obj(P, k, R, rc, ra, rl, x, a, P[k, _T0] if a == lo else a + phi - sh)
+    psi, out = a, oa
+    if b > a and oa[1] > 0.0:
+        ob = _obj(P, k, R, rc, ra, rl, x, b, P[k, _T1] if b == hi else b + phi - sh)
+        if ob[1] >= 0.0:
+            psi, out = b, ob
+        else:
+            psi, out = newton_max(_obj_at, a, b, args, 1e-16, 1e-16, False)
+    G, _, _, xd, dr, r1, y1 = out
+    if psi == lo:
+        return G, 2 * g - 1, _slope_vertex(R, psi, dr, y1), xd
+    if psi == hi:
+        return G, 2 * g + 1, _slope_vertex(R, psi, dr, y1), xd
+    return G, 2 * g, _slope_interior(R, psi, r1, y1), xd
+
+
+@numba.njit(cache=True)
+def _cell_max(pc: PiecesCase, g: int, x: float, phi: float) -> tuple[float, int, float, float]:
+    """(max over certified cell g, feature, slope, x_D) at x: its concave part's maximum or an
+    end (a convex part's maximum is at its ends: a cell end, the concave part's end, or a
+    point beyond ψ_max that cannot carry the wheel)."""
+    G0, s0, xd0 = _vertex(pc, 2 * g - 1, x, phi)
+    G1, s1, xd1 = _vertex(pc, 2 * g + 1, x, phi)
+    best, bf, bs, bx = G0, 2 * g - 1, s0, xd0
+    if best < G1:
+        best, bf, bs, bx = G1, 2 * g + 1, s1, xd1
+    a, b = _concave_span(pc, g, x, phi)
+    if not math.isnan(a):
+        v, f, s, xd = _concave_max(pc, g, x, phi, a, b)
+        if v > best:
+            best, bf, bs, bx = v, f, s, xd
+    return best, bf, bs, bx
+
+
+@numba.njit(cache=True)
+def _cell_group(
+    pc: PiecesCase, g: int, f: int, x: float, phi: float
+) -> tuple[float, int, float, float]:
+    """Feature f's share of certified cell g at x, continuous in x: the interior 2g is the concave
+    part's maximum; a vertex of g is that too if the concave part reaches it (a CONCAVE cell, the
+    lo end of a RISING, the hi end of a FALLING one), else the vertex alone."""
+    a, b = _concave_span(pc, g, x, phi)
+    k, _ = _shift(g, pc.n)
+    shape = int(pc.P[k, _CONC])
+    if f == 2 * g:
+        if math.isnan(a):
+            return _cell_max(pc, g, x, phi)
+        return _concave_max(pc, g, x, phi, a, b)
+    lo_end = f == 2 * g - 1
+    attached = shape == CONCAVE or (shape == RISING and lo_end) or (shape == FALLING and not lo_end)
+    if attached and not math.isnan(a):
+        return _concave_max(pc, g, x, phi, a, b)
+    v, s, xd = _vertex(pc, f, x, phi)
+    return v, f, s, xd
+
+
+@numba.njit(cache=True)
 def _pmax(
     pc: PiecesCase,
     g: int,
@@ -448,6 +577,8 @@ def _pmax(
             if v > best:
                 best, bf, bs, bx = v, f, s, xd
         return best, bf, bs, bx
+    if pc.psi_max > 0.0:
+        return _cell_max(pc, g, x, phi)
     if rc == RAIL_FLAT and int(P[k, _KIND]) == PIECE_LINEAR:
         # G' = b cos ψ - ρ sin ψ: the maximum is at tan ψ = b/ρ(ψ + φ) (a contraction, factor
         # (b/ρ)² ~ 1e-5) clamped to the piece (G is unimodal on it)
@@ -558,6 +689,8 @@ def _feature(
     if base % 2 == 0:
         if _windowed(pc, base // 2):
             v, ff, s, xd = _chord_window(pc, base // 2, j, x, phi)
+        elif pc.psi_max > 0.0:
+            v, ff, s, xd = _cell_group(pc, base // 2, base, x, phi)
         else:
             v, ff, s, xd = _pmax(pc, base // 2, x, phi)
         return v, s, xd, ff
@@ -567,6 +700,8 @@ def _feature(
         if _windowed(pc, gg):
             v, s, xd = _vertex(pc, base, x, phi)
             ff = base
+        elif pc.psi_max > 0.0:
+            v, ff, s, xd = _cell_group(pc, gg, base, x, phi)
         else:
             v, ff, s, xd = _pmax(pc, gg, x, phi)
         if v > best:
@@ -662,10 +797,12 @@ def tabulate_pieces_kernel(
     x1: float,
     nint: int,
     hermite_tol: float,
+    psi_max: float,
 ) -> NDArray[np.float64]:
-    """Node rows (:mod:`sim_core.constraint.nodes`) over [x0, x1], sorted by x."""
+    """Node rows (:mod:`sim_core.constraint.nodes`) over [x0, x1], sorted by x (``psi_max``:
+    :attr:`PiecesCase.psi_max`)."""
     n = P.shape[0]
-    pc = PiecesCase(P, n, R, rc, ra, rl)
+    pc = PiecesCase(P, n, R, rc, ra, rl, psi_max)
     drg = P[:, _DRMAX].max()
     nodes = np.zeros((4 * nint + 64, NCOL))
     feats = np.empty((4 * nint + 64, 3), np.int64)  # feature left, feature right, piece hint
@@ -790,6 +927,14 @@ def tabulate_pieces(
             f"constraint pieces: not for a {wheel.kind!r} wheel on a {rail.kind!r} rail"
         )
     P = wheel_pieces(wheel)
+    psi_max = 0.0
+    if not _plain(wheel, rail):
+        cells = certified_cells(wheel, rail, P)
+        if cells is None:
+            raise ValueError(
+                f"constraint pieces: the {wheel.kind!r} wheel's pieces are not certified on this cosine"
+            )
+        P, psi_max = cells, contact_angle_bound(wheel, rail)
     rc, ra, rl, _, _ = rail.compiled_args()
     return tabulate_pieces_kernel(
         P,
@@ -802,6 +947,7 @@ def tabulate_pieces(
         float(x1),
         int(nint),
         float(hermite_tol),
+        psi_max,
     )
 
 

@@ -1,0 +1,234 @@
+"""Wheel pieces on a cosine rail cut into cells on which G has at most one local maximum, proved by interval bounds.
+
+The piece sweep (:mod:`sim_core.constraint.wheel_pieces`) maximises, per wheel piece,
+
+    G(ψ) = y_r(x + ρ sin ψ) + ρ cos ψ - R,   ρ = r(ψ + φ),   y_r = a·cos(kx), k = 2π/λ.
+
+On a cosine rail the wheel's part of G'' (W below) and the rail's part change sign
+independently (a rounded flat's outline is concave in the middle and convex at its ends),
+so a piece need not be unimodal. Differentiating,
+
+    G''  = y_r''·A² + y_r'·A' + W,                        A = x_D' = r' sin ψ + ρ cos ψ
+    G''' = y_r'''·A³ + 3y_r''·A·A' + y_r'·A'' + W',       W = (r'' - ρ) cos ψ - 2r' sin ψ
+
+with |y_r^(n)| ≤ |a|kⁿ whatever the wheel position. Over a cell u ∈ [u0, u1] of the wheel angle
+and |ψ| ≤ ψ_max, interval arithmetic on these closed forms bounds G'' and G''' for *every*
+wheel position x. A cell is certified with one *shape* (the piece table's ``concave`` column):
+
+- ``CONCAVE``: G'' < 0: one maximum (G' = 0, safeguarded Newton) or an end;
+- ``CONVEX``: G'' > 0: the maximum is at an end;
+- ``RISING`` / ``FALLING``: G''' > 0 / < 0: G'' changes sign at most once, at ψ₂ (its root,
+  by Illinois at each x): G is concave on one side of ψ₂ (at most one interior maximum
+  there) and convex on the other (its maximum at the cell's end on that side).
+
+Cells that fit none are halved (down to 2⁻¹⁴ of the piece); if one still fits none, the
+case is not certified (:func:`certified_cells` returns None) and keeps the ψ-search. Adjacent
+cells of one shape are merged (each property holds pointwise, so on the union).
+
+ψ_max: at ψ = 0 the wheel point is at least ``|a| + depth`` below the rail's top, so the
+global maximum is at least ``-|a| - depth``; a point with R(1 - cos ψ) > 2|a| + depth +
+bulge is below that and never carries the wheel. The certificate covers |ψ| ≤ ψ_max (with
+a margin); the sweep clips each cell to it.
+
+What this proves: on every certified cell, at every x, G has at most one interior local
+maximum in |ψ| ≤ ψ_max, found exactly; the wheel's global maximum is the best of these and
+of the cell ends. Not covered: a haversine whose concave middle is curved less than the
+rail's crests (the shape at the flat's centre then depends on the phase, and G'' = G''' = 0
+can occur there), e.g. the 80 mm, l²/16R-deep flat on the paper's a = 0.1 mm, λ = 5 cm.
+
+Worked example: an 80 mm rounded flat (depth l²/16R = 0.87 mm, R = 0.46 m) on the example
+site's cosine a = 2 µm, λ = 6 cm (rail curvature 0.022 1/m, the flat's middle 0.5 1/m) is
+certified in a few cells: convex in the middle, rising/falling cells near the outline's
+inflections (G'' changes sign there at a phase-dependent angle), concave towards the ends
+and on the round rest; on the paper's cosine it is not:
+
+    >>> from sim_core.constraint.wheel_pieces import wheel_pieces
+    >>> from sim_core.rail import RailProfile
+    >>> from sim_core.wheel import WheelOutline
+    >>> w = WheelOutline.rounded_flat(0.46, 0.08, 0.08**2 / (16 * 0.46))
+    >>> cells = certified_cells(w, RailProfile.cosine(2e-6, 0.06), wheel_pieces(w))
+    >>> [int(s) for s in cells[:5, 6]]  # the haversine: CONCAVE, RISING, CONVEX, FALLING, CONCAVE
+    [0, 2, 1, 3, 0]
+    >>> certified_cells(w, RailProfile.cosine(1e-4, 0.05), wheel_pieces(w)) is None
+    True
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sim_core.rail import RailProfile
+from sim_core.wheel import TWO_PI, WheelOutline
+
+__all__ = [
+    "CONCAVE",
+    "CONVEX",
+    "FALLING",
+    "RISING",
+    "certified_cells",
+    "contact_angle_bound",
+]
+
+CONCAVE, CONVEX, RISING, FALLING = 0, 1, 2, 3
+
+MAX_HALVINGS = 14
+"""How often a piece may be halved before the case counts as not certified."""
+
+MARGIN = 1e-9
+"""A bound must clear zero by this much (1/m; G'' is of order R) to certify a sign."""
+
+# piece table columns and kinds (as in wheel_pieces)
+_T0, _T1, _KIND, _C0, _C1, _CEN, _CONC = range(7)
+_LINEAR, _CHORD, _HAVERSINE, _ARC = 0, 1, 2, 3
+
+Interval = tuple[float, float]
+
+
+def contact_angle_bound(wheel: WheelOutline, rail: RailProfile) -> float:
+    """ψ_max (rad): beyond it no wheel point can carry the wheel (module docstring), with a 1 % margin."""
+    R = wheel.nominal_radius
+    reach = 2.0 * abs(rail.amplitude) + wheel.max_depth + wheel.max_excess
+    return 1.01 * math.acos(max(-1.0, 1.0 - reach / R)) + 1e-9
+
+
+def _add(p: Interval, q: Interval) -> Interval:
+    return p[0] + q[0], p[1] + q[1]
+
+
+def _mul(p: Interval, q: Interval) -> Interval:
+    c = (p[0] * q[0], p[0] * q[1], p[1] * q[0], p[1] * q[1])
+    return min(c), max(c)
+
+
+def _scale(s: float, p: Interval) -> Interval:
+    return (s * p[0], s * p[1]) if s >= 0.0 else (s * p[1], s * p[0])
+
+
+def _mag(p: Interval) -> float:
+    return max(abs(p[0]), abs(p[1]))
+
+
+def _cos_range(a: float, b: float) -> Interval:
+    """The range of cos over [a, b]."""
+    lo = min(math.cos(a), math.cos(b))
+    hi = max(math.cos(a), math.cos(b))
+    if math.floor(b / TWO_PI) * TWO_PI >= a:
+        hi = 1.0
+    if math.floor((b - math.pi) / TWO_PI) * TWO_PI + math.pi >= a:
+        lo = -1.0
+    return lo, hi
+
+
+def _outline(
+    row: NDArray[np.float64], R: float, u0: float, u1: float
+) -> tuple[Interval, Interval, Interval, Interval, Interval, Interval, Interval]:
+    """Intervals of (ρ, r', r'', r''', r'' - ρ, r''' - 3r', 3r'' - ρ) over the wheel angles [u0, u1]
+    of one piece (for the haversine the last three are affine in cos wt or sin wt: exact)."""
+    kind = int(row[_KIND])
+    zero = (0.0, 0.0)
+    if kind == _HAVERSINE:
+        w = TWO_PI * R / row[_C1]
+        hd = 0.5 * row[_C0]
+        t0, t1 = w * (u0 - row[_CEN]), w * (u1 - row[_CEN])
+        c = _cos_range(t0, t1)
+        s = _cos_range(t0 - 0.5 * math.pi, t1 - 0.5 * math.pi)
+        rho = _add((R - hd, R - hd), _scale(-hd, c))
+        r1, r2, r3 = _scale(hd * w, s), _scale(hd * w * w, c), _scale(-hd * w**3, s)
+        r2_rho = _add(_scale(hd * (w * w + 1.0), c), (hd - R, hd - R))
+        r3_r1 = _scale(-hd * w * (w * w + 3.0), s)
+        r2_3 = _add(_scale(hd * (3.0 * w * w + 1.0), c), (hd - R, hd - R))
+        return rho, r1, r2, r3, r2_rho, r3_r1, r2_3
+    if kind == _LINEAR:
+        b = row[_C1]
+        e0 = R + row[_C0] + b * (u0 - row[_T0])
+        e1 = R + row[_C0] + b * (u1 - row[_T0])
+        rho = (min(e0, e1), max(e0, e1))
+        return rho, (b, b), zero, zero, _scale(-1.0, rho), (-3.0 * b, -3.0 * b), _scale(-1.0, rho)
+    if kind == _ARC:
+        return (R, R), zero, zero, zero, (-R, -R), zero, (-R, -R)
+    raise ValueError(f"cosine cells: no interval bounds for piece kind {kind}")
+
+
+def _shape(
+    row: NDArray[np.float64], R: float, u0: float, u1: float, psi_max: float, ra: float, k: float
+) -> int:
+    """The certified shape of G on the cell [u0, u1] (module docstring), -1 if none is proved."""
+    rho, r1, r2, r3, r2_rho, r3_r1, r2_3 = _outline(row, R, u0, u1)
+    cp = (math.cos(psi_max), 1.0)
+    sp = (-math.sin(psi_max), math.sin(psi_max))
+    W = _add(_mul(r2_rho, cp), _scale(-2.0, _mul(r1, sp)))
+    Wp = _add(_mul(r3_r1, cp), _scale(-1.0, _mul(r2_3, sp)))
+    A = _mag(_add(_mul(r1, sp), _mul(rho, cp)))
+    dA = _mag(_add(_add(_mul(r2, sp), _scale(2.0, _mul(r1, cp))), _scale(-1.0, _mul(rho, sp))))
+    ddA = _mag(
+        _add(
+            _add(_mul(r3, sp), _scale(3.0, _mul(r2, cp))),
+            _add(_scale(-3.0, _mul(r1, sp)), _scale(-1.0, _mul(rho, cp))),
+        )
+    )
+    k1, k2, k3 = abs(ra) * k, abs(ra) * k * k, abs(ra) * k**3
+    e2 = k2 * A * A + k1 * dA
+    e3 = k3 * A**3 + 3.0 * k2 * A * dA + k1 * ddA
+    if W[1] + e2 < -MARGIN:
+        return CONCAVE
+    if W[0] - e2 > MARGIN:
+        return CONVEX
+    if Wp[0] - e3 > MARGIN:
+        return RISING
+    if Wp[1] + e3 < -MARGIN:
+        return FALLING
+    return -1
+
+
+def certified_cells(
+    wheel: WheelOutline, rail: RailProfile, pieces: NDArray[np.float64]
+) -> NDArray[np.float64] | None:
+    """The wheel's piece table ``pieces`` (:func:`~sim_core.constraint.wheel_pieces.wheel_pieces`)
+    cut into cells certified on the cosine ``rail`` (shape in column 6), or None.
+
+    Ideal-flat chords are kept whole (solved per crest window, :mod:`sim_core.constraint.flat_cosine`)
+    and marked ``CONCAVE`` (unused). None if some cell cannot be certified after
+    ``MAX_HALVINGS`` halvings.
+    """
+    if rail.kind != "cosine":
+        raise ValueError(f"cosine cells: the rail must be a cosine, got a {rail.kind!r} rail")
+    R = wheel.nominal_radius
+    psi_max = contact_angle_bound(wheel, rail)
+    ra = float(rail.amplitude)
+    k = TWO_PI / rail.wavelength
+    out: list[list[float]] = []
+    for row in pieces:
+        kind = int(row[_KIND])
+        if kind == _CHORD:
+            out.append([*row[:_CONC], float(CONCAVE), *row[_CONC + 1 :]])
+            continue
+        stack = [(float(row[_T0]), float(row[_T1]), 0)]
+        while stack:
+            u0, u1, depth = stack.pop()
+            shape = _shape(row, R, u0, u1, psi_max, ra, k)
+            if shape < 0:
+                if depth >= MAX_HALVINGS:
+                    return None
+                um = 0.5 * (u0 + u1)
+                stack.append((um, u1, depth + 1))
+                stack.append((u0, um, depth + 1))
+                continue
+            prev = out[-1] if out else None
+            if (
+                kind == _HAVERSINE
+                and prev is not None
+                and prev[_KIND] == _HAVERSINE
+                and prev[_CONC] == shape
+                and prev[_T1] == u0
+            ):
+                prev[_T1] = u1  # the same shape on both: on the union too
+                continue
+            cell = [*row[:_CONC], float(shape), *row[_CONC + 1 :]]
+            cell[_T0], cell[_T1] = u0, u1
+            if kind == _LINEAR:
+                cell[_C0] = row[_C0] + row[_C1] * (u0 - row[_T0])
+            out.append(cell)
+    return np.array(out, dtype=np.float64)
