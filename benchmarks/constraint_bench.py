@@ -126,6 +126,13 @@ def run(repeat: int = 5, general: bool = True) -> list[dict[str, float | str]]:
             general,
         ),
         (
+            "rounded flat 80 mm, 6 m, cosine 2 um / 6 cm",
+            WheelOutline.rounded_flat(0.46, 0.08, 0.08**2 / (16 * 0.46)),
+            RailProfile.cosine(2e-6, 0.06),
+            6.0,
+            general,
+        ),
+        (
             "ideal flat 50 mm, 1 m, cosine 0.1 mm / 5 cm",
             WheelOutline.ideal_flat(0.475, 0.05),
             RailProfile.cosine(1e-4, 0.05),

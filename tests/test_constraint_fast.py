@@ -86,8 +86,8 @@ def test_measured_wheel_cosine_rail(phase: float) -> None:
 
 
 def test_rounded_flat_cosine_rail() -> None:
-    # a haversine near its inflections over a curved rail is not unimodal per piece: the
-    # general ψ-search stays (an ideal flat's chord is cut into crest windows: it is supported)
+    # a haversine whose concave middle is curved less than the paper's cosine's crests: its
+    # cells are not certified (sim_core.constraint.cosine_cells), the general ψ-search stays
     w, rail = WheelOutline.rounded_flat(R, 0.08, 0.08**2 / (16 * R)), RailProfile.cosine(1e-4, 0.05)
     assert not supports(w, rail) and supports(measured(), RailProfile.cosine(2e-6, 0.06))
     fast = tabulate_constraint(w, rail, -0.05, 0.05)

@@ -156,7 +156,17 @@ def _shape(
     row: NDArray[np.float64], R: float, u0: float, u1: float, psi_max: float, ra: float, k: float
 ) -> int:
     """The certified shape of G on the cell [u0, u1] (module docstring), -1 if none is proved."""
-    rho, r1, r2, r3, r2_rho, r3_r1, r2_3 = _outline(row, R, u0, u1)
+    return _shape_of(_outline(row, R, u0, u1), psi_max, ra, k)
+
+
+def _shape_of(
+    outline: tuple[Interval, Interval, Interval, Interval, Interval, Interval, Interval],
+    psi_max: float,
+    ra: float,
+    k: float,
+) -> int:
+    """The certified shape of G for an outline given by the intervals of :func:`_outline`."""
+    rho, r1, r2, r3, r2_rho, r3_r1, r2_3 = outline
     cp = (math.cos(psi_max), 1.0)
     sp = (-math.sin(psi_max), math.sin(psi_max))
     W = _add(_mul(r2_rho, cp), _scale(-2.0, _mul(r1, sp)))
@@ -199,11 +209,24 @@ def certified_cells(
     psi_max = contact_angle_bound(wheel, rail)
     ra = float(rail.amplitude)
     k = TWO_PI / rail.wavelength
-    out: list[list[float]] = []
+    linear = pieces[:, _KIND] == _LINEAR
+    if linear.any():
+        # one bound for all of a sampled outline's pieces at once (r between its extremes, r'
+        # between its slopes' extremes): usually enough to prove all CONCAVE without a loop
+        rho = (R + float(pieces[linear, _C0].min()), R + float(pieces[linear, _C0].max()))
+        b = (float(pieces[linear, _C1].min()), float(pieces[linear, _C1].max()))
+        zero = (0.0, 0.0)
+        envelope = (rho, b, zero, zero, _scale(-1.0, rho), _scale(-3.0, b), _scale(-1.0, rho))
+        if _shape_of(envelope, psi_max, ra, k) == CONCAVE:
+            out = pieces.copy()
+            out[linear, _CONC] = float(CONCAVE)
+            if linear.all():
+                return out
+    out_rows: list[list[float]] = []
     for row in pieces:
         kind = int(row[_KIND])
         if kind == _CHORD:
-            out.append([*row[:_CONC], float(CONCAVE), *row[_CONC + 1 :]])
+            out_rows.append([*row[:_CONC], float(CONCAVE), *row[_CONC + 1 :]])
             continue
         stack = [(float(row[_T0]), float(row[_T1]), 0)]
         while stack:
@@ -216,7 +239,7 @@ def certified_cells(
                 stack.append((um, u1, depth + 1))
                 stack.append((u0, um, depth + 1))
                 continue
-            prev = out[-1] if out else None
+            prev = out_rows[-1] if out_rows else None
             if (
                 kind == _HAVERSINE
                 and prev is not None
@@ -230,5 +253,5 @@ def certified_cells(
             cell[_T0], cell[_T1] = u0, u1
             if kind == _LINEAR:
                 cell[_C0] = row[_C0] + row[_C1] * (u0 - row[_T0])
-            out.append(cell)
-    return np.array(out, dtype=np.float64)
+            out_rows.append(cell)
+    return np.array(out_rows, dtype=np.float64)

@@ -142,6 +142,31 @@ def _plain(wheel: WheelOutline, rail: RailProfile) -> bool:
     return False
 
 
+_CELLS: dict[tuple[object, ...], tuple[NDArray[np.float64], float] | None] = {}
+"""Certified cells and ψ_max per wheel and cosine (a passage's wheel meets its rail many times)."""
+
+
+def _certified(wheel: WheelOutline, rail: RailProfile) -> tuple[NDArray[np.float64], float] | None:
+    """(cells, ψ_max) of the wheel on a cosine rail (:mod:`sim_core.constraint.cosine_cells`),
+    None if not certified; kept for the last 64 pairs (read-only: do not modify)."""
+    key = (
+        wheel.kind,
+        wheel.radius,
+        wheel.flat_length,
+        wheel.flat_depth,
+        wheel.theta.tobytes(),
+        wheel.offsets.tobytes(),
+        rail.amplitude,
+        rail.wavelength,
+    )
+    if key not in _CELLS:
+        if len(_CELLS) >= 64:
+            _CELLS.pop(next(iter(_CELLS)))
+        cells = certified_cells(wheel, rail, wheel_pieces(wheel))
+        _CELLS[key] = None if cells is None else (cells, contact_angle_bound(wheel, rail))
+    return _CELLS[key]
+
+
 def supports(wheel: WheelOutline, rail: RailProfile) -> bool:
     """True if the piece sweep applies (G has at most one interior maximum on every piece or cell).
 
@@ -158,7 +183,7 @@ def supports(wheel: WheelOutline, rail: RailProfile) -> bool:
     if _plain(wheel, rail):
         return True
     if rail.kind == "cosine" and wheel.kind in ("rounded_flat", "sampled"):
-        return certified_cells(wheel, rail, wheel_pieces(wheel)) is not None
+        return _certified(wheel, rail) is not None
     return False
 
 
@@ -514,17 +539,26 @@ def _concave_max(
 def _cell_max(pc: PiecesCase, g: int, x: float, phi: float) -> tuple[float, int, float, float]:
     """(max over certified cell g, feature, slope, x_D) at x: its concave part's maximum or an
     end (a convex part's maximum is at its ends: a cell end, the concave part's end, or a
-    point beyond ψ_max that cannot carry the wheel)."""
-    G0, s0, xd0 = _vertex(pc, 2 * g - 1, x, phi)
-    G1, s1, xd1 = _vertex(pc, 2 * g + 1, x, phi)
-    best, bf, bs, bx = G0, 2 * g - 1, s0, xd0
-    if best < G1:
-        best, bf, bs, bx = G1, 2 * g + 1, s1, xd1
+    point beyond ψ_max, which cannot carry the wheel and is skipped)."""
     a, b = _concave_span(pc, g, x, phi)
-    if not math.isnan(a):
-        v, f, s, xd = _concave_max(pc, g, x, phi, a, b)
+    if math.isnan(a):  # convex, or beyond ψ_max: the ends
+        G0, s0, xd0 = _vertex(pc, 2 * g - 1, x, phi)
+        G1, s1, xd1 = _vertex(pc, 2 * g + 1, x, phi)
+        if G0 >= G1:
+            return G0, 2 * g - 1, s0, xd0
+        return G1, 2 * g + 1, s1, xd1
+    best, bf, bs, bx = _concave_max(pc, g, x, phi, a, b)
+    k, sh = _shift(g, pc.n)
+    lo = pc.P[k, _T0] + sh - phi
+    hi = pc.P[k, _T1] + sh - phi
+    if b < hi <= pc.psi_max:  # a convex part up to the cell's hi end
+        v, s, xd = _vertex(pc, 2 * g + 1, x, phi)
         if v > best:
-            best, bf, bs, bx = v, f, s, xd
+            best, bf, bs, bx = v, 2 * g + 1, s, xd
+    if -pc.psi_max <= lo < a:  # a convex part from the cell's lo end
+        v, s, xd = _vertex(pc, 2 * g - 1, x, phi)
+        if v > best:
+            best, bf, bs, bx = v, 2 * g - 1, s, xd
     return best, bf, bs, bx
 
 
@@ -926,15 +960,15 @@ def tabulate_pieces(
         raise ValueError(
             f"constraint pieces: not for a {wheel.kind!r} wheel on a {rail.kind!r} rail"
         )
-    P = wheel_pieces(wheel)
-    psi_max = 0.0
-    if not _plain(wheel, rail):
-        cells = certified_cells(wheel, rail, P)
+    if _plain(wheel, rail):
+        P, psi_max = wheel_pieces(wheel), 0.0
+    else:
+        cells = _certified(wheel, rail)
         if cells is None:
             raise ValueError(
                 f"constraint pieces: the {wheel.kind!r} wheel's pieces are not certified on this cosine"
             )
-        P, psi_max = cells, contact_angle_bound(wheel, rail)
+        P, psi_max = cells
     rc, ra, rl, _, _ = rail.compiled_args()
     return tabulate_pieces_kernel(
         P,
