@@ -17,10 +17,12 @@ Which method (one module each, all compiled with numba):
   (:mod:`sim_core.constraint.flat_rail`);
 - a round wheel on a polyline rail (sampled, file, dented, step): the envelope of arcs and
   lines in closed form (:mod:`sim_core.constraint.round_polyline`);
-- an out-of-round wheel on a flat or gentle cosine rail, and an ideal flat on a cosine (its
+- an out-of-round wheel on a flat or gentle cosine rail, an ideal flat on a cosine (its
   chord cut into the rail's crest windows, each in closed form,
-  :mod:`sim_core.constraint.flat_cosine`): the piece sweep
-  (:mod:`sim_core.constraint.wheel_pieces`);
+  :mod:`sim_core.constraint.flat_cosine`), and a rounded flat or sampled outline on a cosine
+  whose pieces cut into cells proved to hold at most one local maximum each
+  (:mod:`sim_core.constraint.cosine_cells`; not, e.g., an l²/16R-deep flat on the paper's
+  cosine): the piece sweep (:mod:`sim_core.constraint.wheel_pieces`);
 - an out-of-round wheel on a sampled rail: the wheel's pieces against the rail's
   segments inside the stretches where the out-of-roundness can reach the contact, the
   round wheel's closed form (made once per rail and radius, kept) elsewhere

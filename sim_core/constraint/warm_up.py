@@ -21,7 +21,8 @@ def warm_up_constraint() -> float:
     A long-running process (the streaming service) calls this once at start, before the
     first wheel: no wheel then pays for compilation. Covers the round wheel on flat,
     cosine, step and sampled rails, the ideal flat on a flat rail, the piece sweep (sampled
-    outline on flat and cosine rails, ideal flat on a cosine), the polyline sweep (ideal flat, rounded flat and
+    outline on flat and cosine rails, ideal flat on a cosine, rounded flat on a cosine by its
+    certified cells), the polyline sweep (ideal flat, rounded flat and
     sampled outline on a sampled rail, with the round wheel's cached table), the general
     ψ-search, the direct solve and the table look-up. Returns the wall time it took (s).
 

@@ -1,4 +1,4 @@
-"""Fast exact y_C^k for out-of-round wheels on flat and gentle cosine rails: a sweep over the wheel's pieces.
+"""Fast exact y_C^k for out-of-round wheels on flat and cosine rails: a sweep over the wheel's pieces.
 
 The wheel outline is cut into *pieces* in θ on which r(θ) is one smooth formula:
 
@@ -13,7 +13,12 @@ rail (flat or cosine) the objective of MODEL.md §2 restricted to one piece,
     G(ψ) = y_r(x + ρ sin ψ) + ρ cos ψ - R,  ρ = r(ψ + φ),
 
 is unimodal on a convex piece (its maximum is where G' = 0, found by safeguarded Newton
-with analytic G'', or at an end) and has its maximum at an end on a concave piece.
+with analytic G'', or at an end) and has its maximum at an end on a concave piece. Where
+the rail's curvature can flip that (a rounded flat, or a sampled outline on a cosine curved
+more than 0.1/R), the pieces are cut into *certified cells*
+(:mod:`sim_core.constraint.cosine_cells`): concave, convex, or with G'' changing sign once at
+an x-dependent ψ₂ (G concave on one side: the interior feature is that part's maximum, and a
+vertex on the convex side stands alone), each clipped to the angles that can carry the wheel.
 y_C^k(x) is the maximum over the pieces; the winner is a *feature*:
 
 - ``2g``: the interior of piece g (the contact point slides along it; slope by the
