@@ -23,7 +23,9 @@ wheel position x. A cell is certified with one *shape* (the piece table's ``conc
 
 Cells that fit none are halved (down to 2⁻¹⁴ of the piece); if one still fits none, the
 case is not certified (:func:`certified_cells` returns None) and keeps the ψ-search. Adjacent
-cells of one shape are merged (each property holds pointwise, so on the union).
+haversine cells of one shape are merged (each property holds pointwise, so on the union). A
+sampled outline's pieces are first tried all at once (one interval for r and one for r' over
+the whole outline): on a cosine curved less than about 1/R they are all CONCAVE.
 
 ψ_max: at ψ = 0 the wheel point is at least ``|a| + depth`` below the rail's top, so the
 global maximum is at least ``-|a| - depth``; a point with R(1 - cos ψ) > 2|a| + depth +
@@ -32,13 +34,15 @@ a margin); the sweep clips each cell to it.
 
 What this proves: on every certified cell, at every x, G has at most one interior local
 maximum in |ψ| ≤ ψ_max, found exactly; the wheel's global maximum is the best of these and
-of the cell ends. Not covered: a haversine whose concave middle is curved less than the
-rail's crests (the shape at the flat's centre then depends on the phase, and G'' = G''' = 0
-can occur there), e.g. the 80 mm, l²/16R-deep flat on the paper's a = 0.1 mm, λ = 5 cm.
+of the cell ends. Not covered: wheel angles where the rail's bound on G'' exceeds |W| and its
+bound on G''' exceeds |W'|, e.g. the centre of a haversine (W' = 0 there) whose concave middle
+is curved less than the rail's crests: the 80 mm, l²/16R-deep flat on the paper's a = 0.1 mm,
+λ = 5 cm. There G'' = G''' = 0 does occur along the flat, so no cell around such a point fits
+a shape however small; these cases keep the ψ-search.
 
 Worked example: an 80 mm rounded flat (depth l²/16R = 0.87 mm, R = 0.46 m) on the example
-site's cosine a = 2 µm, λ = 6 cm (rail curvature 0.022 1/m, the flat's middle 0.5 1/m) is
-certified in a few cells: convex in the middle, rising/falling cells near the outline's
+site's cosine a = 2 µm, λ = 6 cm (rail curvature at most 0.022 1/m; the flat's middle is
+concave, curvature -0.5 1/m) is certified in a few cells: convex in the middle, rising/falling cells near the outline's
 inflections (G'' changes sign there at a phase-dependent angle), concave towards the ends
 and on the round rest; on the paper's cosine it is not:
 
