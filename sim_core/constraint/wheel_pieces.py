@@ -153,7 +153,7 @@ _CELLS: dict[tuple[object, ...], tuple[NDArray[np.float64], float] | None] = {}
 
 def _certified(wheel: WheelOutline, rail: RailProfile) -> tuple[NDArray[np.float64], float] | None:
     """(cells, ψ_max) of the wheel on a cosine rail (:mod:`sim_core.constraint.cosine_cells`),
-    None if not certified; kept for the last 64 pairs (read-only: do not modify)."""
+    None if not certified; kept for up to 64 pairs (read-only: do not modify)."""
     key = (
         wheel.kind,
         wheel.radius,
@@ -164,12 +164,16 @@ def _certified(wheel: WheelOutline, rail: RailProfile) -> tuple[NDArray[np.float
         rail.amplitude,
         rail.wavelength,
     )
-    if key not in _CELLS:
-        if len(_CELLS) >= 64:
-            _CELLS.pop(next(iter(_CELLS)))
-        cells = certified_cells(wheel, rail, wheel_pieces(wheel))
-        _CELLS[key] = None if cells is None else (cells, contact_angle_bound(wheel, rail))
-    return _CELLS[key]
+    try:
+        return _CELLS[key]
+    except KeyError:
+        pass
+    cells = certified_cells(wheel, rail, wheel_pieces(wheel))
+    got = None if cells is None else (cells, contact_angle_bound(wheel, rail))
+    if len(_CELLS) >= 64:  # (one dict operation each: safe between the service's threads)
+        _CELLS.clear()
+    _CELLS[key] = got
+    return got
 
 
 def supports(wheel: WheelOutline, rail: RailProfile) -> bool:
