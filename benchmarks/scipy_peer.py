@@ -102,6 +102,8 @@ class _Problem:
         self.c = c.coefficient
         self.f_y = c.yield_force
         self.d_y = c.yield_indentation if c.law.is_plastic else math.inf
+        # the same switch as railtwin's: yield at δ_Y + w, unyield at δ_Y - w
+        self.switch = c.switch_width if c.law.is_plastic else 0.0
         self.theta = c.johnson_coefficient
         self.m = spec.mass
         self.p = spec.load
@@ -220,7 +222,10 @@ def solve_events(
         return prob.delta(t, s)
 
     def g_yield(t: float, s: NDArray[np.float64]) -> float:
-        return prob.delta(t, s) - prob.d_y
+        return prob.delta(t, s) - prob.d_y - prob.switch
+
+    def g_unyield(t: float, s: NDArray[np.float64]) -> float:
+        return prob.delta(t, s) - prob.d_y + prob.switch
 
     def events(md: int) -> list[tuple[Any, str]]:
         out: list[tuple[Any, str]] = []
@@ -232,7 +237,7 @@ def solve_events(
             if prob.law.is_plastic:
                 out.append((_event(g_yield, +1), "yield"))
         else:
-            out.append((_event(g_yield, -1), "unyield"))
+            out.append((_event(g_unyield, -1), "unyield"))
         return out
 
     evs = {md: events(md) for md in (FLIGHT, ELASTIC, PLASTIC)}

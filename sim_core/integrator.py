@@ -9,7 +9,7 @@ ever straddles a change of law (MODEL.md §4, §7):
 
 - loss of contact: δ falls through 0 (elastic mode);
 - return of contact: δ rises through 0 (flight);
-- yield / unyield: δ crosses δ_Y (± a hysteresis of ~1e-14 m, MODEL.md §5).
+- yield / unyield: δ crosses δ_Y (± ``ContactModel.switch_width``, MODEL.md §5).
 
 Kinks of the constraint y_C^k (contact-point jumps) are known in advance
 (``ConstraintTable.kinks``): steps in contact stop exactly on them.

@@ -67,9 +67,6 @@ then shortens the step."""
 DENT_SPACING = 2e-5
 """Wheel travel (m) between records of the plastic indentation (dents are mm to cm long)."""
 
-YIELD_HYSTERESIS = 1e-14
-"""Width (m) of the elastic/plastic switch's hysteresis (MODEL.md §5)."""
-
 TRANSITION_KINDS = tuple(e.label for e in Event)
 """Names of the transition codes 0..3 the integrator reports (``integrate_types.Event``)."""
 
@@ -283,7 +280,7 @@ def simulate_passage(
         f_y=spec.contact.yield_force,
         d_y=spec.contact.yield_indentation,
         theta=spec.contact.johnson_coefficient,
-        hyst=YIELD_HYSTERESIS,
+        hyst=spec.contact.switch_width,
         mass=spec.mass,
         load=spec.load,
         speed=v,

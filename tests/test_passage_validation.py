@@ -109,6 +109,24 @@ def test_contact_model_rejects_infinite_yield_force() -> None:
         ContactModel(ContactLaw.JOHNSON, K600.c, INF, K600.d_y)
 
 
+@pytest.mark.parametrize("eps", [-1e-6, 2e-3, NAN, INF])
+def test_contact_model_rejects_yield_hysteresis(eps: float) -> None:
+    with pytest.raises(ValueError, match=r"yield_hysteresis.*0 <= ε <= 1e-3"):
+        ContactModel(ContactLaw.HERTZ_PLASTIC, K600.c, K600.f_y, K600.d_y, yield_hysteresis=eps)
+
+
+def test_contact_model_switch_width() -> None:
+    """ε·δ_Y, ε = 3e-5 by default for the Hertzian–perfectly plastic law only, and never
+    below the round-off floor (ε = 0, or Hertz without a δ_Y)."""
+    hpp = ContactModel(ContactLaw.HERTZ_PLASTIC, K600.c, K600.f_y, K600.d_y)
+    assert hpp.switch_width == pytest.approx(3e-5 * K600.d_y, rel=1e-12)
+    off = ContactModel(ContactLaw.HERTZ_PLASTIC, K600.c, K600.f_y, K600.d_y, yield_hysteresis=0.0)
+    john = ContactModel(ContactLaw.JOHNSON, K600.c, K600.f_y, K600.d_y)
+    assert off.switch_width == john.switch_width == HERTZ.switch_width == 1e-14
+    wide = ContactModel(ContactLaw.JOHNSON, K600.c, K600.f_y, K600.d_y, yield_hysteresis=1e-4)
+    assert wide.switch_width == pytest.approx(1e-4 * K600.d_y, rel=1e-12)
+
+
 def test_contact_model_rejects_inconsistent_yield_pair() -> None:
     with pytest.raises(ValueError, match="yield"):
         ContactModel(ContactLaw.HERTZ_PLASTIC, K600.c, 2.0 * K600.f_y, K600.d_y)
