@@ -96,6 +96,11 @@ OK = 0
 STEP_TOO_SMALL = 1
 TOO_MANY_STEPS = 2
 
+# Why the loop returned: done (its status says how), or a buffer is full.
+LOOP_DONE = 0
+LOOP_NEED_TRANSITIONS = 1
+LOOP_NEED_DENTS = 2
+
 # Sample columns.
 S_T = 0
 S_X = 1
@@ -216,6 +221,36 @@ class Work(NamedTuple):
     """[128] the flight scan's bisection stack: fractions ..."""
     stack_g: NDArray[np.float64]
     """[128] ... and δ there."""
+
+
+class LoopState(NamedTuple):
+    """Where the integrator's loop stands: what it hands back when it stops to be given room.
+
+    The loop allocates nothing (it is compiled without reference counting); when a
+    buffer (transitions, dents) is full it returns this, is handed a larger buffer and
+    resumes from it. Every field is a scalar, so it is passed by value.
+    """
+
+    t: float
+    h: float
+    """The next step's size."""
+    mode: int
+    kp: int
+    """The next kink's index."""
+    si: int
+    """The next sample's index."""
+    hint: int
+    j0c: float
+    """The jerks at t (wheel, foundation)."""
+    j0m: float
+    steps: int
+    rejected: int
+    rhs_evaluations: int
+    n_tr: int
+    """Rows of the transition buffer used."""
+    n_dent: int
+    """Rows of the dent buffer used."""
+    status: int
 
 
 class Result(NamedTuple):

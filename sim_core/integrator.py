@@ -15,7 +15,9 @@ Kinks of the constraint y_C^k (contact-point jumps) are known in advance
 (``ConstraintTable.kinks``): steps in contact stop exactly on them.
 
 The concerns live in small compiled functions around one short loop
-(``integrate``), in the manner of diffrax:
+(``_run``, compiled without reference counting: it allocates nothing, and
+``integrate`` hands it larger buffers when it stops for room), in the manner
+of diffrax:
 
 | concern | where |
 |---|---|
@@ -55,6 +57,8 @@ from sim_core.integrate_model import (
     value_at_x,
 )
 from sim_core.integrate_records import (
+    dent_rows,
+    grown,
     push_row,
     record_dents,
     step_extrema,
@@ -67,6 +71,9 @@ from sim_core.integrate_types import (
     EV_LOSS,
     EV_YIELD,
     FLIGHT,
+    LOOP_DONE,
+    LOOP_NEED_DENTS,
+    LOOP_NEED_TRANSITIONS,
     N_COLS,
     N_EXTREMA,
     NO_EVENT,
@@ -79,6 +86,7 @@ from sim_core.integrate_types import (
     X_PEAK_DELTA,
     X_PEAK_FORCE,
     X_T_FLIGHT,
+    LoopState,
     Params,
     Result,
     Table,
@@ -383,65 +391,46 @@ def _start_derivatives(
     return jerks(t, y, am, mode, par, tab, hint, False)
 
 
-@numba.njit(cache=True, nogil=True)
-def integrate(
+@kernel
+def _run(
     tab: Table,
     kinks: NDArray[np.float64],
     par: Params,
-    t0: float,
     t1: float,
-    y0: NDArray[np.float64],
+    y: NDArray[np.float64],
     sample_t: NDArray[np.float64],
     max_steps: int,
-) -> Result:
-    """Integrate one passage from t0 to t1.
+    samples: NDArray[np.float64],
+    trans: NDArray[np.float64],
+    dents: NDArray[np.float64],
+    ext: NDArray[np.float64],
+    w: Work,
+    st: LoopState,
+) -> tuple[int, LoopState]:
+    """The step loop from ``st`` to t1, or until ``trans`` or ``dents`` is full: (why, state).
 
-    Args:
-        tab: the constraint table (``integrate_types.table_of``).
-        kinks: kink positions x (absolute, sorted) over the passage.
-        par: the passage's constants.
-        y0: initial (y_C, v_C, y_M, v_M).
-        sample_t: increasing output times in [t0, t1].
-        max_steps: safety limit on accepted + rejected steps.
+    Compiled without reference counting (it allocates nothing): a call costs no atomic
+    operations on the ~20 arrays it is handed, nor does each use of them in the loop.
     """
     v = par.speed
-    samples = np.zeros((sample_t.size, N_COLS))
-    trans = np.empty((64, 2))
-    n_tr = 0
-    dents = np.empty((1024, 3))
-    n_dent = 0
-    w = Work(
-        np.zeros((13, 4)),
-        np.zeros(13),
-        np.zeros(4),
-        np.empty(4),
-        np.zeros((2, 8)),
-        np.empty(128),
-        np.empty(128),
-    )
     K = w.K
     ynew = w.ynew
     coef = w.coef
-    y = y0.copy()
-    status = OK
-    t = t0
-    ck0, _, sc0, hint = constraint_at(tab, v * t, 0)
-    delta0 = -y[0] + ck0 + y[2]
-    mode = mode_of(delta0, par)
-    j0c, j0m, hint = _start_derivatives(t, y, mode, K, par, tab, hint)
-    ext = np.zeros(N_EXTREMA)
-    ext[X_PEAK_DELTA] = delta0
-    ext[X_MIN_DELTA] = delta0 if mode != FLIGHT else 0.0
-    ext[X_PEAK_FORCE] = loading_force(delta0, par, sc0) if mode != FLIGHT else 0.0
-    ext[X_MIN_FORCE] = ext[X_PEAK_FORCE]
-    nsteps = 0
-    nrej = 0
-    nrhs = 1
-    h = H_FIRST
-    si = write_initial_samples(samples, sample_t, t0, y, ck0, delta0, mode, par)
-    kp = 0
-    while kp < kinks.size and kinks[kp] <= v * t + 1e-15:
-        kp += 1
+    t = st.t
+    h = st.h
+    mode = st.mode
+    kp = st.kp
+    si = st.si
+    hint = st.hint
+    j0c = st.j0c
+    j0m = st.j0m
+    nsteps = st.steps
+    nrej = st.rejected
+    nrhs = st.rhs_evaluations
+    n_tr = st.n_tr
+    n_dent = st.n_dent
+    status = st.status
+    why = LOOP_DONE
     while t < t1:
         if nsteps + nrej >= max_steps:
             status = TOO_MANY_STEPS
@@ -467,6 +456,13 @@ def integrate(
                 h = max(h, 1e-9)
                 continue
             status = STEP_TOO_SMALL
+            break
+        # --- room for what this step may record (the step taken is at most h)
+        if n_tr >= trans.shape[0]:
+            why = LOOP_NEED_TRANSITIONS
+            break
+        if mode == PLASTIC and par.track_dents and n_dent + dent_rows(h, par) > dents.shape[0]:
+            why = LOOP_NEED_DENTS
             break
         # --- the step
         status, h, err, n_rej, hint = attempt_step(t, y, h, mode, w, par, tab, hint)
@@ -498,8 +494,9 @@ def integrate(
                 fill_dense(coef, hstep, y, K[0], j0c, j0m, ynew, K[12], j1c, j1m)
             else:
                 hstep = 0.0
-                ynew[:] = y
-                K[12, :] = K[0, :]
+                for j in range(4):
+                    ynew[j] = y[j]
+                    K[12, j] = K[0, j]
                 fill_dense(coef, 1.0, y, K[0], j0c, j0m, ynew, K[12], j0c, j0m)
         tn = kinks[kp] / v if hit_kink else t + hstep
         # --- records: samples, extrema, dents
@@ -512,16 +509,17 @@ def integrate(
         elif hstep > 0.0:
             d_b, r_b, c_b, hint = step_extrema(ext, mode, t, hstep, y, ynew, coef, par, tab, hint)
             if mode == PLASTIC and par.track_dents:
-                dents, n_dent, hint = record_dents(dents, n_dent, t, hstep, coef, par, tab, hint)
+                n_dent, hint = record_dents(dents, n_dent, t, hstep, coef, par, tab, hint)
         # --- advance
         t = tn
-        y[:] = ynew
+        for j in range(4):
+            y[j] = ynew[j]
         if hit_kink:
             kp += 1
         while kp < kinks.size and kinks[kp] <= v * t + 1e-15:
             kp += 1
         if ev_kind != NO_EVENT:
-            trans, n_tr = push_row(trans, n_tr, t, float(ev_kind))
+            n_tr = push_row(trans, n_tr, t, float(ev_kind))
             mode, hint = land_on_event(ev_kind, t, y, par, tab, hint)
             if ev_kind == EV_LOSS:
                 ext[X_MIN_DELTA] = min(ext[X_MIN_DELTA], 0.0)
@@ -529,7 +527,8 @@ def integrate(
             nrhs += 1
             h, hint = step_after_event(ev_kind, h, t, t1, hstep, coef, par, tab, hint)
             continue
-        K[0, :] = K[12, :]
+        for j in range(4):
+            K[0, j] = K[12, j]
         if hit_kink:
             # the constraint's slope jumps here: the jerk does too
             j0c, j0m, hint = jerks(t, y, K[0, 3], mode, par, tab, hint, False)
@@ -539,16 +538,82 @@ def integrate(
         h = h * factor
         if mode == ELASTIC and d_b > 0.0:
             h = step_toward_loss(h, d_b, r_b, c_b, par)
+    out = LoopState(
+        t, h, mode, kp, si, hint, j0c, j0m, nsteps, nrej, nrhs, n_tr, n_dent, status
+    )
+    return why, out
+
+
+@numba.njit(cache=True, nogil=True)
+def integrate(
+    tab: Table,
+    kinks: NDArray[np.float64],
+    par: Params,
+    t0: float,
+    t1: float,
+    y0: NDArray[np.float64],
+    sample_t: NDArray[np.float64],
+    max_steps: int,
+) -> Result:
+    """Integrate one passage from t0 to t1.
+
+    Allocates the outputs and scratch arrays, then runs the loop (``_run``), giving it
+    larger transition or dent buffers whenever it stops for room.
+
+    Args:
+        tab: the constraint table (``integrate_types.table_of``).
+        kinks: kink positions x (absolute, sorted) over the passage.
+        par: the passage's constants.
+        y0: initial (y_C, v_C, y_M, v_M).
+        sample_t: increasing output times in [t0, t1].
+        max_steps: safety limit on accepted + rejected steps.
+    """
+    v = par.speed
+    samples = np.zeros((sample_t.size, N_COLS))
+    trans = np.empty((64, 2))
+    dents = np.empty((1024, 3))
+    w = Work(
+        np.zeros((13, 4)),
+        np.zeros(13),
+        np.zeros(4),
+        np.empty(4),
+        np.zeros((2, 8)),
+        np.empty(128),
+        np.empty(128),
+    )
+    y = y0.copy()
+    ck0, _, sc0, hint = constraint_at(tab, v * t0, 0)
+    delta0 = -y[0] + ck0 + y[2]
+    mode = mode_of(delta0, par)
+    j0c, j0m, hint = _start_derivatives(t0, y, mode, w.K, par, tab, hint)
+    ext = np.zeros(N_EXTREMA)
+    ext[X_PEAK_DELTA] = delta0
+    ext[X_MIN_DELTA] = delta0 if mode != FLIGHT else 0.0
+    ext[X_PEAK_FORCE] = loading_force(delta0, par, sc0) if mode != FLIGHT else 0.0
+    ext[X_MIN_FORCE] = ext[X_PEAK_FORCE]
+    si = write_initial_samples(samples, sample_t, t0, y, ck0, delta0, mode, par)
+    kp = 0
+    while kp < kinks.size and kinks[kp] <= v * t0 + 1e-15:
+        kp += 1
+    st = LoopState(t0, H_FIRST, mode, kp, si, hint, j0c, j0m, 0, 0, 1, 0, 0, OK)
+    while True:
+        why, st = _run(tab, kinks, par, t1, y, sample_t, max_steps, samples, trans, dents, ext, w, st)
+        if why == LOOP_NEED_TRANSITIONS:
+            trans = grown(trans, st.n_tr, 1)
+        elif why == LOOP_NEED_DENTS:
+            dents = grown(dents, st.n_dent, dent_rows(st.h, par))
+        else:
+            break
     return Result(
-        status,
-        t,
-        mode,
+        st.status,
+        st.t,
+        st.mode,
         samples,
-        trans[:n_tr].copy(),
+        trans[: st.n_tr].copy(),
         ext,
-        dents[:n_dent].copy(),
-        nsteps,
-        nrej,
-        nrhs,
+        dents[: st.n_dent].copy(),
+        st.steps,
+        st.rejected,
+        st.rhs_evaluations,
         y,
     )
