@@ -240,6 +240,9 @@ class LoopState(NamedTuple):
     si: int
     """The next sample's index."""
     hint: int
+    sample_hint: int
+    """The samples' own look-up hint: they advance monotonically, where the step's
+    look-ups end ahead of them (a shared hint made the first sample of a step bisect)."""
     j0c: float
     """The jerks at t (wheel, foundation)."""
     j0m: float

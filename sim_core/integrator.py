@@ -422,6 +422,7 @@ def _run(
     kp = st.kp
     si = st.si
     hint = st.hint
+    shint = st.sample_hint
     j0c = st.j0c
     j0m = st.j0m
     nsteps = st.steps
@@ -500,7 +501,7 @@ def _run(
                 fill_dense(coef, 1.0, y, K[0], j0c, j0m, ynew, K[12], j0c, j0m)
         tn = kinks[kp] / v if hit_kink else t + hstep
         # --- records: samples, extrema, dents
-        si, hint = write_samples(samples, si, sample_t, tn, t, hstep, coef, mode, par, tab, hint)
+        si, shint = write_samples(samples, si, sample_t, tn, t, hstep, coef, mode, par, tab, shint)
         d_b = 0.0
         r_b = 0.0
         c_b = 0.0
@@ -539,7 +540,7 @@ def _run(
         if mode == ELASTIC and d_b > 0.0:
             h = step_toward_loss(h, d_b, r_b, c_b, par)
     out = LoopState(
-        t, h, mode, kp, si, hint, j0c, j0m, nsteps, nrej, nrhs, n_tr, n_dent, status
+        t, h, mode, kp, si, hint, shint, j0c, j0m, nsteps, nrej, nrhs, n_tr, n_dent, status
     )
     return why, out
 
@@ -595,7 +596,7 @@ def integrate(
     kp = 0
     while kp < kinks.size and kinks[kp] <= v * t0 + 1e-15:
         kp += 1
-    st = LoopState(t0, H_FIRST, mode, kp, si, hint, j0c, j0m, 0, 0, 1, 0, 0, OK)
+    st = LoopState(t0, H_FIRST, mode, kp, si, hint, hint, j0c, j0m, 0, 0, 1, 0, 0, OK)
     while True:
         why, st = _run(tab, kinks, par, t1, y, sample_t, max_steps, samples, trans, dents, ext, w, st)
         if why == LOOP_NEED_TRANSITIONS:
