@@ -13,8 +13,10 @@ output is searched for the first event in it:
   plus the foundation's acceleration): an interval is discarded only if its
   end values and the bound prove δ < 0 inside it (``detect_in_flight``).
 
-``find_root`` (Illinois regula falsi) locates every zero the integrator needs:
-the events, and the sign changes of dδ/dt and dF/dt that are the extrema.
+``find_root`` locates every zero the integrator needs: the events, and the sign
+changes of dδ/dt and dF/dt that are the extrema. It runs railtwin's one Illinois
+loop (``sim_core.constraint.roots.illinois_bracket``, which the constraint's
+``illinois`` runs too) on the step's dense output.
 
 Worked example: see ``sim_core.integrator``; ``tests/test_integrator.py``
 checks the located transitions against an independent solver to 1e-7 s.
@@ -26,6 +28,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from sim_core.constraint.roots import illinois_bracket
 from sim_core.contact_laws import HERTZ
 from sim_core.integrate_dense import end_acceleration
 from sim_core.integrate_model import delta_rate, force_rate
@@ -87,6 +90,14 @@ def value_at(
     return event_value(kind, d, par), hint
 
 
+@numba.njit(cache=True, inline="always")
+def _value_of(s: float, args: tuple[int, float, float, NDArray[np.float64], Params, Table, int]) -> float:
+    """``value_at`` as the root finder's f(x, args); args = (kind, t, h, coef, par, tab, hint)."""
+    kind, t, h, coef, par, tab, hint = args
+    g, _ = value_at(kind, s, t, h, coef, par, tab, hint)
+    return g
+
+
 @kernel
 def find_root(
     kind: int,
@@ -107,35 +118,14 @@ def find_root(
 ) -> tuple[float, float, int]:
     """Illinois regula falsi for g = sign·f_kind with g(sa) <= 0 < g(sb), on fractions of a step.
 
-    Stops when the bracket is at most ``s_tol`` wide, when |g| < ``g_tol`` or
-    after ``max_iter`` evaluations. Returns (sb, the last point evaluated, hint):
-    sb is the first point known to have g > 0 (an event's location), the last
-    point the best estimate of the zero (an extremum's location).
+    ``sim_core.constraint.roots.illinois_bracket`` on ``value_at``: stops when the bracket
+    is at most ``s_tol`` wide, when |g| < ``g_tol`` or after ``max_iter`` evaluations.
+    Returns (sb, the last point evaluated, hint): sb is the first point known to have
+    g > 0 (an event's location), the last point the best estimate of the zero (an
+    extremum's location). Every look-up starts from ``hint`` (the bracket lies in one step).
     """
-    side = 0
-    sm = 0.5 * (sa + sb)
-    for _ in range(max_iter):
-        if sb - sa <= s_tol:
-            break
-        sm = (sa * gb - sb * ga) / (gb - ga) if gb != ga else 0.5 * (sa + sb)
-        if not (sa < sm < sb):
-            sm = 0.5 * (sa + sb)
-        gm, hint = value_at(kind, sm, t, h, coef, par, tab, hint)
-        gm *= sign
-        if gm > 0.0:
-            sb = sm
-            gb = gm
-            if side == -1:
-                ga *= 0.5
-            side = -1
-        else:
-            sa = sm
-            ga = gm
-            if side == 1:
-                gb *= 0.5
-            side = 1
-        if abs(gm) < g_tol:
-            break
+    args = (kind, t, h, coef, par, tab, hint)
+    _, sb, sm = illinois_bracket(_value_of, args, sign, sa, ga, sb, gb, s_tol, g_tol, max_iter, False)
     return sb, sm, hint
 
 

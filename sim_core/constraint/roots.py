@@ -28,7 +28,7 @@ from typing import Any
 
 import numba
 
-__all__ = ["bisect", "illinois", "newton_max", "newton_max_from"]
+__all__ = ["bisect", "illinois", "illinois_bracket", "newton_max", "newton_max_from"]
 
 
 @numba.njit(cache=True, inline="always")
@@ -63,28 +63,61 @@ def illinois(f: Any, xa: float, xb: float, args: Any) -> float:
         return xb
     if (fa > 0.0) == (fb > 0.0):
         return math.nan
-    a, b = xa, xb
+    sign = 1.0 if fb > 0.0 else -1.0
+    a, b, _ = illinois_bracket(f, args, sign, xa, sign * fa, xb, sign * fb, 2e-16, 0.0, 200, True)
+    return 0.5 * (a + b)
+
+
+@numba.njit(cache=True, inline="always")
+def illinois_bracket(
+    f: Any,
+    args: Any,
+    sign: float,
+    a: float,
+    ga: float,
+    b: float,
+    gb: float,
+    x_tol: float,
+    g_tol: float,
+    max_iter: int,
+    stop_at_zero: bool,
+) -> tuple[float, float, float]:
+    """Illinois false position on g = sign·f(x, args), given g(a) = ``ga`` <= 0 < g(b) = ``gb``.
+
+    Narrows [a, b], keeping g(a) <= 0 < g(b), until ``b - a <= x_tol·max(1, |a|)``, |g| <
+    ``g_tol`` at the last point, g = 0 there exactly (if ``stop_at_zero``: then a = b = that
+    point) or after ``max_iter`` evaluations. Returns (a, b, the last point evaluated, or the
+    midpoint if none): b is the first point known to have g > 0 (where an event of the
+    integrator is), the last point the best estimate of the zero. The one Illinois loop of
+    railtwin: ``illinois`` above and the integrator's events and extrema
+    (``sim_core.integrate_events.find_root``) run it.
+    """
     side = 0
-    for _ in range(200):
-        if b - a <= 2e-16 * max(1.0, abs(a)):
+    m = 0.5 * (a + b)
+    for _ in range(max_iter):
+        if b - a <= x_tol * max(1.0, abs(a)):
             break
-        m = (a * fb - b * fa) / (fb - fa)
+        m = (a * gb - b * ga) / (gb - ga) if gb != ga else 0.5 * (a + b)
         if not (a < m < b):
             m = 0.5 * (a + b)
-        fm = f(m, args)
-        if fm == 0.0:
-            return m
-        if (fm > 0.0) == (fa > 0.0):
-            a, fa = m, fm
+        gm = sign * f(m, args)
+        if gm > 0.0:
+            b = m
+            gb = gm
             if side == -1:
-                fb *= 0.5
+                ga *= 0.5
             side = -1
+        elif stop_at_zero and gm == 0.0:
+            return m, m, m
         else:
-            b, fb = m, fm
+            a = m
+            ga = gm
             if side == 1:
-                fa *= 0.5
+                gb *= 0.5
             side = 1
-    return 0.5 * (a + b)
+        if abs(gm) < g_tol:
+            break
+    return a, b, m
 
 
 @numba.njit(cache=True, inline="always")
