@@ -51,6 +51,7 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from sim_core.constraint.contact_zones import contact_zones
 from sim_core.constraint.nodes import (
     HERMITE_TOL,
     MAX_STEPS,
@@ -71,13 +72,13 @@ from sim_core.constraint.nodes import (
     table_from_nodes,
 )
 from sim_core.constraint.rail_polyline import RailPolyline, rail_polyline
-from sim_core.constraint.roots import newton_max_from
 from sim_core.constraint.round_polyline import poly_points, round_nodes
 from sim_core.constraint.table import ConstraintTable
 from sim_core.constraint.wheel_pieces import (
     PIECE_ARC,
     PIECE_CHORD,
     PIECE_HAVERSINE,
+    PIECE_LINEAR,
     _piece_of,
     _rho,
     _shift,
@@ -251,15 +252,23 @@ def _psi_at(
 
 @numba.njit(cache=True)
 def _vertex_point(
-    P: NDArray[np.float64], k: int, sh: float, R: float, x: float, phi: float, xv: float
-) -> tuple[float, float, float, float, float, float]:
-    """(ψ, r - R, r', sin ψ, cos ψ, 1 - cos ψ) of the wheel point of piece k (turn shift sh)
-    over the rail position xv: :func:`_psi_at`, with the haversine's last Newton step (<= 1e-9
-    rad) carried into r, r', sin and cos to second order (an error ~1e-27) instead of a new
-    evaluation."""
-    if int(P[k, _KIND]) == PIECE_HAVERSINE:
-        u = (xv - x) / R
-        psi = math.asin(min(max(u, -1.0), 1.0))
+    P: NDArray[np.float64],
+    k: int,
+    sh: float,
+    R: float,
+    x: float,
+    phi: float,
+    xv: float,
+    start: float = math.nan,
+) -> tuple[float, float, float, float, float, float, float]:
+    """(ψ, r - R, r', sin ψ, cos ψ, 1 - cos ψ, r'') of the wheel point of piece k (turn shift
+    sh) over the rail position xv: :func:`_psi_at`, with the last Newton step (<= 1e-9 rad) of
+    a haversine or sampled piece carried into r, r', sin and cos to second order (an error
+    ~1e-27) instead of a new evaluation. ``start``: the Newton's first iterate (from
+    :func:`_predict`; asin((xv - x)/R) if nan)."""
+    kind = int(P[k, _KIND])
+    if kind in (PIECE_HAVERSINE, PIECE_LINEAR):
+        psi = start if not math.isnan(start) else math.asin(min(max((xv - x) / R, -1.0), 1.0))
         for _ in range(12):
             dr, r1, r2 = _rho(P, k, R, psi + phi - sh)
             rho = R + dr
@@ -267,8 +276,7 @@ def _vertex_point(
             cp = math.cos(psi)
             d = (x + rho * sp - xv) / (r1 * sp + rho * cp)
             if abs(d) <= 1e-9:
-                h = math.sin(0.5 * psi)
-                omc = 2.0 * h * h
+                omc = sp * sp / (1.0 + cp)  # 1 - cos ψ without cancellation
                 q = 1.0 - 0.5 * d * d
                 return (
                     psi - d,
@@ -277,13 +285,27 @@ def _vertex_point(
                     sp * q - cp * d,
                     cp * q + sp * d,
                     omc - sp * d + 0.5 * cp * d * d,
+                    r2,
                 )
             psi -= d
     else:
         psi = _psi_at(P, k, sh, R, x, phi, xv)
-    dr, r1, _ = _rho(P, k, R, psi + phi - sh)
-    h = math.sin(0.5 * psi)
-    return psi, dr, r1, math.sin(psi), math.cos(psi), 2.0 * h * h
+    return _wheel_point(P, k, sh, R, phi, psi)
+
+
+@numba.njit(cache=True, inline="always")
+def _predict(
+    R: float, vp: tuple[float, float, float, float, float, float, float], du: float
+) -> float:
+    """ψ of the same piece's wheel point ``du`` further along the rail than the point ``vp``
+    (:func:`_vertex_point`), to second order: from a rail vertex 0.5 mm away (δψ ~ 1e-3 rad)
+    it is ~1e-10 rad off, so the Newton of :func:`_vertex_point` stops after one evaluation."""
+    psi, dr, r1, sp, cp, _, r2 = vp
+    rho = R + dr
+    a1 = r1 * sp + rho * cp
+    a2 = r2 * sp + 2.0 * r1 * cp - rho * sp
+    d = du / a1
+    return psi + d - 0.5 * a2 / a1 * d * d
 
 
 @numba.njit(cache=True)
@@ -312,34 +334,51 @@ def _g_line(
     return g, gp, gpp, xd, dr, r1
 
 
-@numba.njit(cache=True)
-def _g_line_at(
-    psi: float,
-    args: tuple[NDArray[np.float64], int, float, float, float, float, float, float, float],
-) -> tuple[float, float, float, float, float, float]:
-    """:func:`_g_line` at ψ for args = (P, k, turn shift, R, x, φ, x_j, y_j, s), for the solvers."""
-    P, k, sh, R, x, phi, xj, yj, s = args
-    return _g_line(P, k, sh, R, x, phi, psi, xj, yj, s)
+@numba.njit(cache=True, inline="always")
+def _slope_tangent(R: float, sp: float, cp: float, r1: float, s: float) -> float:
+    """dy_C/dx of a piece tangent to a segment of slope s at ψ (sin ψ, cos ψ; r')."""
+    return s * (1.0 + r1 * sp / R) + r1 * cp / R
 
 
 @numba.njit(cache=True, inline="always")
-def _slope_tangent(R: float, psi: float, r1: float, s: float) -> float:
-    return s * (1.0 + r1 * math.sin(psi) / R) + r1 * math.cos(psi) / R
-
-
-@numba.njit(cache=True, inline="always")
-def _slope_wheel_vertex(R: float, psi: float, dr: float, s: float) -> float:
+def _slope_wheel_vertex(R: float, sp: float, cp: float, dr: float, s: float) -> float:
+    """dy_C/dx of a wheel vertex (sin ψ, cos ψ; r - R) on a segment of slope s."""
     rho = R + dr
-    return s * (1.0 - rho * math.cos(psi) / R) + rho * math.sin(psi) / R
+    return s * (1.0 - rho * cp / R) + rho * sp / R
 
 
 @numba.njit(cache=True, inline="always")
-def _slope_rail_vertex(R: float, psi: float, dr: float, r1: float) -> float:
+def _slope_rail_vertex(R: float, sp: float, cp: float, dr: float, r1: float) -> float:
+    """dy_C/dx of a wheel point (sin ψ, cos ψ; r - R, r') pivoting on a rail vertex."""
     rho = R + dr
-    sp = math.sin(psi)
-    cp = math.cos(psi)
     dpsi = -(1.0 + r1 * sp / R) / (r1 * sp + rho * cp)
     return r1 * (dpsi + 1.0 / R) * cp - rho * sp * dpsi
+
+
+@numba.njit(cache=True, inline="always")
+def _hermite_root(lo: float, hi: float, f0: float, f1: float, d0: float, d1: float) -> float:
+    """The root in (lo, hi) of the cubic Hermite interpolant of f (f0 > 0 > f1, slopes d0, d1
+    at the ends), by a few Newton steps from the secant; the secant's root where the cubic is
+    not monotone. Of G' on a haversine cell 1e-3 rad wide it is ~1e-10 rad off the root."""
+    w = hi - lo
+    m0 = d0 * w
+    m1 = d1 * w
+    t = f0 / (f0 - f1)
+    for _ in range(4):
+        t2 = t * t
+        t3 = t2 * t
+        p = (2.0 * t3 - 3.0 * t2 + 1.0) * f0 + (t3 - 2.0 * t2 + t) * m0
+        p += (3.0 * t2 - 2.0 * t3) * f1 + (t3 - t2) * m1
+        dp = (
+            6.0 * (t2 - t) * (f0 - f1) + (3.0 * t2 - 4.0 * t + 1.0) * m0 + (3.0 * t2 - 2.0 * t) * m1
+        )
+        if not dp < 0.0:
+            break
+        tn = t - p / dp
+        if not 0.0 < tn < 1.0:
+            break
+        t = tn
+    return lo + t * w
 
 
 @numba.njit(cache=True)
@@ -358,22 +397,63 @@ def _stationary(
     gplo: float = math.nan,
     gphi: float = math.nan,
     start: float = math.nan,
+    gpplo: float = math.nan,
+    gpphi: float = math.nan,
 ) -> tuple[float, float, float, float]:
-    """(G, ψ, x_D, r') at the root of G' in (lo, hi) (G'(lo) > 0 > G'(hi)): safeguarded Newton,
-    from the secant of G' between the ends if their G' (``gplo``, ``gphi``) are given, else
-    from ``start`` (the root at a nearby x) if it is inside, else from the midpoint."""
+    """(G, ψ, x_D, r') at the root of G' in (lo, hi) (G'(lo) > 0 > G'(hi)).
+
+    Safeguarded Newton on G' (bisection where a step leaves the bracket or G'' >= 0), from
+    the root of the cubic Hermite interpolant of G' if its values and G'' at the ends
+    (``gplo``, ``gphi``, ``gpplo``, ``gpphi``) are given, from the secant if only the values
+    are, else from ``start`` (the root at a nearby x) if it is inside, else from the
+    midpoint. The last Newton step (<= 1e-9 rad, leaving ~1e-18 rad) is carried into G, x_D
+    and r' to second order (G exact to ~1e-27 m) instead of a new evaluation.
+    """
     if int(P[k, _KIND]) == PIECE_ARC:
         psi = math.atan(s)
         g, _, _, xd, _, r1 = _g_line(P, k, sh, R, x, phi, psi, xj, yj, s)
-        return g, psi, xd, r1
+        return g, psi, xd, r1, math.sin(psi), math.cos(psi)
     if gplo > 0.0 > gphi:
-        start = lo + (hi - lo) * gplo / (gplo - gphi)
-    # a Newton step of 1e-9 rad leaves ~1e-18 rad (quadratic convergence)
-    psi, out = newton_max_from(
-        _g_line_at, lo, hi, start, (P, k, sh, R, x, phi, xj, yj, s), 1e-9, 0.0, True
-    )
-    g, _, _, xd, _, r1 = out
-    return g, psi, xd, r1
+        if gpplo < 0.0 and gpphi < 0.0:
+            start = _hermite_root(lo, hi, gplo, gphi, gpplo, gpphi)
+        else:
+            start = lo + (hi - lo) * gplo / (gplo - gphi)
+    a, b = lo, hi
+    psi = start if lo < start < hi else 0.5 * (lo + hi)
+    last = False
+    for _ in range(61):
+        dr, r1, r2 = _rho(P, k, R, psi + phi - sh)
+        rho = R + dr
+        sp = math.sin(psi)
+        cp = math.cos(psi)
+        ax = r1 * sp + rho * cp  # d x_D / dψ
+        xd = x + rho * sp
+        g = yj + s * (xd - xj) + dr * cp - R * sp * sp / (1.0 + cp)
+        gp = s * ax + r1 * cp - rho * sp
+        if last or gp == 0.0:
+            break
+        gpp = s * (r2 * sp + 2.0 * r1 * cp - rho * sp) + r2 * cp - 2.0 * r1 * sp - rho * cp
+        if gp > 0.0:
+            a = psi
+        else:
+            b = psi
+        nxt = psi - gp / gpp if gpp < 0.0 else 0.5 * (a + b)
+        if a < nxt < b:
+            if gpp < 0.0 and abs(nxt - psi) <= 1e-9:
+                d = nxt - psi
+                return (
+                    g + d * (gp + 0.5 * gpp * d),
+                    nxt,
+                    xd + ax * d,
+                    r1 + r2 * d,
+                    sp + cp * d,
+                    cp - sp * d,
+                )
+        else:
+            nxt = 0.5 * (a + b)
+        last = b - a <= 4e-16 or (gpp < 0.0 and abs(nxt - psi) <= 1e-9)
+        psi = nxt
+    return g, psi, xd, r1, sp, cp
 
 
 @numba.njit(cache=True, inline="always")
@@ -389,18 +469,28 @@ def _at_vertex(
     return yv + dr * cp - 2.0 * R * h * h, r1 * sp + rho * cp, r1 * cp - rho * sp, x + rho * sp
 
 
-VertexPoint = tuple[float, float, float, float, float, float]
-"""A wheel point over a rail vertex: (ψ, r - R, r', sin ψ, cos ψ, 1 - cos ψ)."""
-NO_POINT: VertexPoint = (0.0, 0.0, 0.0, 0.0, 1.0, 0.0)
+VertexPoint = tuple[float, float, float, float, float, float, float]
+"""A wheel point over a rail vertex: (ψ, r - R, r', sin ψ, cos ψ, 1 - cos ψ, r'')."""
+NO_POINT: VertexPoint = (0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0)
 """A placeholder :data:`VertexPoint` (no rail vertex)."""
 
 
 @numba.njit(cache=True, inline="always")
 def _at_point(R: float, x: float, yv: float, vp: VertexPoint) -> tuple[float, float, float, float]:
     """:func:`_at_vertex` from a :func:`_vertex_point` (its sines and cosines kept)."""
-    _, dr, r1, sp, cp, omc = vp
+    _, dr, r1, sp, cp, omc, _ = vp
     rho = R + dr
     return yv + dr * cp - R * omc, r1 * sp + rho * cp, r1 * cp - rho * sp, x + rho * sp
+
+
+@numba.njit(cache=True, inline="always")
+def _curvature(
+    R: float, dr: float, r1: float, r2: float, sp: float, cp: float
+) -> tuple[float, float]:
+    """(A2, B2) of a wheel point (r - R, r', r'', sin ψ, cos ψ): G'' on a segment of slope s
+    is s·A2 + B2 there (A2 is also d²x_D/dψ²)."""
+    rho = R + dr
+    return r2 * sp + 2.0 * r1 * cp - rho * sp, r2 * cp - 2.0 * r1 * sp - rho * cp
 
 
 @numba.njit(cache=True)
@@ -411,20 +501,33 @@ def _cell(
     x: float,
     phi: float,
     clip: float,
-) -> tuple[float, int, int, int, float, float]:
-    """max of G over cell (piece g, segment j) at x: (value, type, g, r, slope, x_D); type -1 if empty."""
+    cv: int = -1,
+    cvp: VertexPoint = NO_POINT,
+) -> tuple[float, int, int, int, float, float, int, VertexPoint]:
+    """max of G over cell (piece g, segment j) at x: (value, type, g, r, slope, x_D, and the
+    wheel point of :func:`_cell_in`); type -1 if empty. ``cv``, ``cvp``: as in :func:`_cell_in`."""
     P, n, R = pl.P, pl.n, pl.R
     k, sh = _shift(g, n)
     a = max(P[k, _T0] + sh - phi, -clip)
     b = min(P[k, _T1] + sh - phi, clip)
     if not a < b:
-        return -np.inf, -1, 0, 0, 0.0, 0.0
+        return -np.inf, -1, 0, 0, 0.0, 0.0, cv, cvp
     dra, _, _ = _rho(P, k, R, a + phi - sh)
     drb, _, _ = _rho(P, k, R, b + phi - sh)
     xa = x + (R + dra) * math.sin(a)
     xb = x + (R + drb) * math.sin(b)
-    out = _cell_in(pl, g, k, sh, j, x, phi, a, b, xa, xb, -1, NO_POINT)
-    return out[0], out[1], out[2], out[3], out[4], out[5]
+    return _cell_in(pl, g, k, sh, j, x, phi, a, b, xa, xb, cv, cvp)
+
+
+@numba.njit(cache=True, inline="always")
+def _wheel_point(
+    P: NDArray[np.float64], k: int, sh: float, R: float, phi: float, psi: float
+) -> VertexPoint:
+    """The :data:`VertexPoint` tuple of piece k (turn shift sh) at ψ (a wheel vertex)."""
+    dr, r1, r2 = _rho(P, k, R, psi + phi - sh)
+    sp = math.sin(psi)
+    cp = math.cos(psi)
+    return psi, dr, r1, sp, cp, sp * sp / (1.0 + cp), r2
 
 
 @numba.njit(cache=True)
@@ -444,56 +547,82 @@ def _cell_in(
     cvp: VertexPoint,
 ) -> tuple[float, int, int, int, float, float, int, VertexPoint]:
     """:func:`_cell` on piece g = (k, turn shift sh) clipped to ψ in [a, b] (wheel points at
-    x_D = xa, xb), with the wheel point over rail vertex ``cv`` known (``cvp``, from
-    :func:`_vertex_point`) from the neighbouring cell (-1: none); returns the cell's best and the wheel point over its hi rail
-    vertex (j + 1, or -1 if the cell ends at a wheel vertex) for the next cell."""
+    x_D = xa, xb), with the piece's wheel point over rail vertex ``cv`` known (``cvp``, from
+    :func:`_vertex_point`; -1: none): taken as it is over vertex j, else the start
+    (:func:`_predict`) of the Newton for the cell's rail vertices. Returns the cell's best and
+    the last wheel point over a rail vertex known (the hi one if the cell ends at one) for the
+    next cell of the piece."""
     P, R, vx, vy, sl = pl.P, pl.R, pl.vx, pl.vy, pl.sl
     xj = vx[j]
     xj1 = vx[j + 1]
     s = sl[j]
     if xb < xj or xa > xj1:
-        return -np.inf, -1, 0, 0, 0.0, 0.0, -1, NO_POINT
+        return -np.inf, -1, 0, 0, 0.0, 0.0, cv, cvp
     # lo end: a wheel vertex on the segment or the wheel point over rail vertex j
     if xa >= xj:
-        plo = a
+        p0 = _wheel_point(P, k, sh, R, phi, a)
         tlo, glo, rlo = FT_W, g - 1, j
-        dr0, r10, _ = _rho(P, k, R, plo + phi - sh)
-        G0, A0, B0, xd0 = _at_vertex(R, x, 0.0, plo, dr0, r10)
+        G0, A0, B0, xd0 = _at_point(R, x, 0.0, p0)
         G0 += vy[j] + s * (xd0 - xj)
     else:
-        vp0 = cvp if cv == j else _vertex_point(P, k, sh, R, x, phi, xj)
-        plo, dr0, r10 = vp0[0], vp0[1], vp0[2]
+        if cv == j:
+            p0 = cvp
+        else:
+            st = _predict(R, cvp, xj - vx[cv]) if cv >= 0 else math.nan
+            p0 = _vertex_point(P, k, sh, R, x, phi, xj, st)
+            cv, cvp = j, p0
         tlo, glo, rlo = FT_V, g, j
-        G0, A0, B0, xd0 = _at_point(R, x, vy[j], vp0)
-    hv = -1
-    vp1 = NO_POINT
+        G0, A0, B0, xd0 = _at_point(R, x, vy[j], p0)
     if xb <= xj1:
-        phi_ = b
+        p1 = _wheel_point(P, k, sh, R, phi, b)
         thi, ghi, rhi = FT_W, g, j
-        dr1, r11, _ = _rho(P, k, R, phi_ + phi - sh)
-        G1, A1, B1, xd1 = _at_vertex(R, x, 0.0, phi_, dr1, r11)
+        G1, A1, B1, xd1 = _at_point(R, x, 0.0, p1)
         G1 += vy[j] + s * (xd1 - xj)
     else:
-        vp1 = _vertex_point(P, k, sh, R, x, phi, xj1)
-        phi_, dr1, r11 = vp1[0], vp1[1], vp1[2]
+        st = _predict(R, cvp, xj1 - vx[cv]) if cv >= 0 else math.nan
+        p1 = _vertex_point(P, k, sh, R, x, phi, xj1, st)
+        cv, cvp = j + 1, p1
         thi, ghi, rhi = FT_V, g, j + 1
-        G1, A1, B1, xd1 = _at_point(R, x, vy[j + 1], vp1)
-        hv = j + 1
+        G1, A1, B1, xd1 = _at_point(R, x, vy[j + 1], p1)
+    plo, dr0, r10 = p0[0], p0[1], p0[2]
+    phi_, dr1, r11 = p1[0], p1[1], p1[2]
     gp0 = s * A0 + B0
     gp1 = s * A1 + B1
     convex = P[k, _CONC] == 0.0 and int(P[k, _KIND]) != PIECE_CHORD
     if convex and gp0 > 0.0 and gp1 < 0.0 and plo < phi_:
-        G, psi, xd, r1 = _stationary(P, k, sh, R, x, phi, plo, phi_, xj, vy[j], s, gp0, gp1)
+        a0, b0 = _curvature(R, dr0, r10, p0[6], p0[3], p0[4])
+        a1, b1 = _curvature(R, dr1, r11, p1[6], p1[3], p1[4])
+        G, _, xd, r1, sp, cp = _stationary(
+            P,
+            k,
+            sh,
+            R,
+            x,
+            phi,
+            plo,
+            phi_,
+            xj,
+            vy[j],
+            s,
+            gp0,
+            gp1,
+            math.nan,
+            s * a0 + b0,
+            s * a1 + b1,
+        )
         if G >= G0 and G >= G1:
-            return G, FT_T, g, j, _slope_tangent(R, psi, r1, s), xd, hv, vp1
+            return G, FT_T, g, j, _slope_tangent(R, sp, cp, r1, s), xd, cv, cvp
     if G0 >= G1:
         if tlo == FT_V:
-            sl0 = _slope_rail_vertex(R, plo, dr0, r10)
-            return G0, tlo, glo, rlo, sl0, xd0, hv, vp1
-        return G0, tlo, glo, rlo, _slope_wheel_vertex(R, plo, dr0, s), xd0, hv, vp1
+            sl0 = _slope_rail_vertex(R, p0[3], p0[4], dr0, r10)
+            return G0, tlo, glo, rlo, sl0, xd0, cv, cvp
+        sl0 = _slope_wheel_vertex(R, p0[3], p0[4], dr0, s)
+        return G0, tlo, glo, rlo, sl0, xd0, cv, cvp
     if thi == FT_V:
-        return G1, thi, ghi, rhi, _slope_rail_vertex(R, phi_, dr1, r11), xd1, hv, vp1
-    return G1, thi, ghi, rhi, _slope_wheel_vertex(R, phi_, dr1, s), xd1, hv, vp1
+        sl1 = _slope_rail_vertex(R, p1[3], p1[4], dr1, r11)
+        return G1, thi, ghi, rhi, sl1, xd1, cv, cvp
+    sl1 = _slope_wheel_vertex(R, p1[3], p1[4], dr1, s)
+    return G1, thi, ghi, rhi, sl1, xd1, cv, cvp
 
 
 @numba.njit(cache=True)
@@ -553,13 +682,10 @@ def _chord_max(
     bs = bx = 0.0
     if bi >= 0:
         best += dr0
-        psi = _psi_at(P, k, sh, R, x, phi, vx[bi])
-        dr, r1, _ = _rho(P, k, R, psi + phi - sh)
-        h = math.sin(0.5 * psi)
-        best = vy[bi] + dr * math.cos(psi) - 2.0 * R * h * h
+        vp = _vertex_point(P, k, sh, R, x, phi, vx[bi])
+        best, _, _, bx = _at_point(R, x, vy[bi], vp)
         bt, bg, br = FT_V, g, bi
-        bs = _slope_rail_vertex(R, psi, dr, r1)
-        bx = x + (R + dr) * math.sin(psi)
+        bs = _slope_rail_vertex(R, vp[3], vp[4], vp[1], vp[2])
     # the chord's ends (not where the window clipped it)
     for end in range(2):
         pe = a if end == 0 else b
@@ -570,9 +696,27 @@ def _chord_max(
         ge, _, _, xd, dr, _ = _g_line(P, k, sh, R, x, phi, pe, vx[j], vy[j], sl[j])
         if ge > best:
             best, bt, bg, br = ge, FT_W, (g - 1 if end == 0 else g), j
-            bs = _slope_wheel_vertex(R, pe, dr, sl[j])
+            bs = _slope_wheel_vertex(R, math.sin(pe), math.cos(pe), dr, sl[j])
             bx = xd
     return best, bt, bg, br, bs, bx
+
+
+@numba.njit(cache=True, inline="always")
+def _asin_below(q: float) -> float:
+    """A lower bound of asin(q) within ~0.075·q⁵ (|q| <= 0.5: the series' first two terms and
+    a bound of the rest, whose terms have the sign of q and coefficients <= 3/40; asin itself
+    beyond, q clamped to [-1, 1]). The global solve's bounds take it: no asin per segment."""
+    if abs(q) > 0.5:
+        return math.asin(min(max(q, -1.0), 1.0))
+    q2 = q * q
+    base = q * (1.0 + q2 / 6.0)
+    return base + 0.075 * q * q2 * q2 / (1.0 - q2) if q < 0.0 else base
+
+
+@numba.njit(cache=True, inline="always")
+def _asin_above(q: float) -> float:
+    """An upper bound of asin(q), as :func:`_asin_below`."""
+    return -_asin_below(-q)
 
 
 @numba.njit(cache=True)
@@ -596,17 +740,26 @@ def _global(
     phi = phase + x / R
     g0 = _piece_of(P, n, phi, hint)
     j0 = _seg_of(vx, x)
-    best, bt, bg, br, bs, bx = _cell(pl, g0, j0, x, phi, CLIP)
-    if seed_t >= 0:
-        seeds = np.empty((2, 2), np.int64)
-        ns = _cells_of(seed_t, seed_g, seed_r, seeds, 0)
-        last = vx.size - 2
-        for c in range(ns):
-            j = seeds[c, 1]
-            if 0 <= j <= last:
-                v, t, gg, r, s, xd = _cell(pl, seeds[c, 0], j, x, phi, CLIP)
-                if t >= 0 and v > best:
-                    best, bt, bg, br, bs, bx = v, t, gg, r, s, xd
+    best, bt, bg, br, bs, bx, cv, cvp = _cell(pl, g0, j0, x, phi, CLIP)
+    # the seed feature's cells (a wheel point over a rail vertex shared with the cell before)
+    sg0, sj0, sg1, sj1 = seed_g, -1, seed_g, -1
+    if seed_t == FT_T:
+        sj0 = seed_r
+    elif seed_t == FT_W:
+        sj0 = sj1 = seed_r
+        sg1 = seed_g + 1
+    elif seed_t == FT_V:
+        sj0, sj1 = seed_r - 1, seed_r
+    last = vx.size - 2
+    pg = g0
+    for sg, sj in ((sg0, sj0), (sg1, sj1)):
+        if sj < 0 or sj > last or (sg == g0 and sj == j0):
+            continue
+        if sg != pg:
+            cv, pg = -1, sg
+        v, t, gg, r, s, xd, cv, cvp = _cell(pl, sg, sj, x, phi, CLIP, cv, cvp)
+        if t >= 0 and v > best:
+            best, bt, bg, br, bs, bx = v, t, gg, r, s, xd
     # the window of ψ that can win
     d = ymax + drg - best
     psw = math.sqrt(2.0 * max(d, 0.0) / R) * 1.01 + 1e-12
@@ -646,11 +799,13 @@ def _global(
         hd = P[k, _C0]
         hw = TWO_PI * R / P[k, _C1] if hav else 0.0
         hhalf = 0.5 * P[k, _C1] / R
-        cv = -1  # the wheel point over rail vertex cv, from the cell before
+        ir = 1.0 / R
+        ird = 1.0 / (R - hd)  # the 1e-9 rad margin below covers their round-off
+        cv = -1  # the piece's last wheel point over a rail vertex (cv), from the cells before
         cvp = NO_POINT
         for j in range(ja, jb + 1):
-            if g == g0 and j == j0:
-                continue
+            if (g == g0 and j == j0) or (g == sg0 and j == sj0) or (g == sg1 and j == sj1):
+                continue  # evaluated above (on a wider clip: the same or a better value)
             # distance from x to the segment bounds |ψ| from below
             if vx[j + 1] < x:
                 u = x - vx[j + 1]
@@ -664,12 +819,12 @@ def _global(
             if hav:
                 # r - R grows with |θ| on a haversine: bound it at the segment's far wheel angle
                 # (ρ in [R - d, R] puts ψ between asin(u/R) and asin(u/(R - d)))
-                q0 = min(max((vx[j] - x) / R, -1.0), 1.0)
-                q1 = min(max((vx[j + 1] - x) / R, -1.0), 1.0)
-                q0d = min(max((vx[j] - x) / (R - hd), -1.0), 1.0)
-                q1d = min(max((vx[j + 1] - x) / (R - hd), -1.0), 1.0)
-                tlo = min(math.asin(q0), math.asin(q0d)) + phi - sh - 1e-9
-                thi = max(math.asin(q1), math.asin(q1d)) + phi - sh + 1e-9
+                q0 = (vx[j] - x) * ir
+                q1 = (vx[j + 1] - x) * ir
+                q0d = (vx[j] - x) * ird
+                q1d = (vx[j + 1] - x) * ird
+                tlo = _asin_below(min(q0, q0d)) + phi - sh - 1e-9
+                thi = _asin_above(max(q1, q1d)) + phi - sh + 1e-9
                 tfar = min(max(abs(tlo), abs(thi)), hhalf)
                 drb = min(-0.5 * hd * (1.0 + math.cos(hw * tfar)), dm)
                 bound2 = (
@@ -698,11 +853,14 @@ def _restricted(
     bt = bg = br = -1
     bs = bx = 0.0
     last = vx.size - 2
+    pg, cv, cvp = -1, -1, NO_POINT  # the piece of the cell before and its last wheel point
     for c in range(nc):
         j = cells[c, 1]
         if j < 0 or j > last:
             continue
-        v, t, gg, r, s, xd = _cell(pl, cells[c, 0], j, x, phi, CLIP)
+        if cells[c, 0] != pg:
+            cv, pg = -1, cells[c, 0]
+        v, t, gg, r, s, xd, cv, cvp = _cell(pl, cells[c, 0], j, x, phi, CLIP, cv, cvp)
         if t >= 0 and v > best:
             best, bt, bg, br, bs, bx = v, t, gg, r, s, xd
     return best, bt, bg, br, bs, bx
@@ -730,26 +888,24 @@ def _feature_eval(
         G, _, _, xd, dr, _ = _g_line(P, k, sh, R, x, phi, psi, vx[r], vy[r], sl[r])
         if xd < vx[r] - 1e-13 or xd > vx[r + 1] + 1e-13:
             return -np.inf, 0.0, xd, psi
-        return G, _slope_wheel_vertex(R, psi, dr, sl[r]), xd, psi
+        return G, _slope_wheel_vertex(R, math.sin(psi), math.cos(psi), dr, sl[r]), xd, psi
     lo = P[k, _T0] + sh - phi
     hi = P[k, _T1] + sh - phi
     if t == FT_V:
-        psi = _psi_at(P, k, sh, R, x, phi, vx[r])
-        dr, r1, _ = _rho(P, k, R, psi + phi - sh)
-        xd = x + (R + dr) * math.sin(psi)
+        vp = _vertex_point(P, k, sh, R, x, phi, vx[r])
+        psi = vp[0]
+        G, _, _, xd = _at_point(R, x, vy[r], vp)
         if psi < lo - 1e-13 or psi > hi + 1e-13:
             return -np.inf, 0.0, xd, psi
-        h = math.sin(0.5 * psi)
-        G = vy[r] + dr * math.cos(psi) - 2.0 * R * h * h
-        return G, _slope_rail_vertex(R, psi, dr, r1), xd, psi
+        return G, _slope_rail_vertex(R, vp[3], vp[4], vp[1], vp[2]), xd, psi
     lo = max(lo, -CLIP)
     hi = min(hi, CLIP)
-    G, psi, xd, r1 = _stationary(
+    G, psi, xd, r1, sp, cp = _stationary(
         P, k, sh, R, x, phi, lo, hi, vx[r], vy[r], sl[r], math.nan, math.nan, start
     )
     if not (lo <= psi <= hi) or xd < vx[r] - 1e-13 or xd > vx[r + 1] + 1e-13:
         return -np.inf, 0.0, xd, psi
-    return G, _slope_tangent(R, psi, r1, sl[r]), xd, psi
+    return G, _slope_tangent(R, sp, cp, r1, sl[r]), xd, psi
 
 
 @numba.njit(cache=True)
@@ -1037,46 +1193,6 @@ def sweep_kernel(
     return out[order]
 
 
-FLAT_ZONE_MARGIN = 1e-4
-"""Margin (rad) on the flat's angular extent when deciding where the round table holds."""
-
-
-def _contact_zones(
-    rn: NDArray[np.float64], R: float, half: float, phase: float, x0: float, x1: float
-) -> list[tuple[float, float]]:
-    """Stretches of [x0, x1] where a flat (|θ| <= ``half``, r <= R) can change y_C^k.
-
-    A flat lies inside the nominal circle, so y_C^k equals the round wheel's constraint
-    wherever the round wheel's own contact point is on the round part of the outline. That
-    point's wheel angle θ* = asin((x_D - x)/R) + φ is non-decreasing along the stretch (the
-    contact point of a round wheel only moves forward; while it pivots on a rail vertex θ*
-    falls by at most (1 - cos ψ)/(R cos ψ) per metre, ~1e-7 rad per node interval, far
-    below FLAT_ZONE_MARGIN), so between two nodes of the round table it stays between its
-    values at the nodes: an interval belongs to a zone if that range meets a flat.
-    """
-    x = rn[:, X]
-    i0 = max(int(np.searchsorted(x, x0, side="right")) - 1, 0)
-    i1 = min(int(np.searchsorted(x, x1, side="left")) + 1, x.size)
-    xs = x[i0:i1]
-    th = np.arcsin(np.clip((rn[i0:i1, XD] - xs) / R, -1.0, 1.0)) + phase + xs / R
-    lo, hi = th[:-1] - FLAT_ZONE_MARGIN, th[1:] + FLAT_ZONE_MARGIN
-    k = np.floor((lo + half) / TWO_PI)
-    # the first flat at or after lo - half ... the interval meets it if it starts before its end
-    hit = np.zeros(lo.size, bool)
-    for kk in (k, k + 1.0):
-        hit |= (lo <= TWO_PI * kk + half) & (hi >= TWO_PI * kk - half)
-    zones: list[tuple[float, float]] = []
-    for i in np.flatnonzero(hit):
-        a, b = max(float(xs[i]), x0), min(float(xs[i + 1]), x1)
-        if b <= a:
-            continue
-        if zones and a <= zones[-1][1]:
-            zones[-1] = (zones[-1][0], b)
-        else:
-            zones.append((a, b))
-    return zones
-
-
 def tabulate_polyline(
     wheel: WheelOutline,
     rail: RailProfile,
@@ -1102,9 +1218,7 @@ def tabulate_polyline(
         return max(math.ceil((hi - lo) / step), 2)
 
     if wheel.kind in ("ideal_flat", "rounded_flat"):
-        zones = _contact_zones(
-            round_nodes(rail, R, step, x0, x1), R, wheel.flat_half_angle, phase, x0, x1
-        )
+        zones = contact_zones(rail, R, step, wheel.flat_half_angle, phase, x0, x1)
     else:
         zones = flat_zones(wheel, poly, phase, x0, x1)
     # the stretch in order: gaps (round closed form, cut from the rail's round table at exact
