@@ -168,27 +168,61 @@ def table_from_nodes(
     nodes: NDArray[np.float64], period: float, resolution: float, dx: float
 ) -> ConstraintTable:
     """The table of node rows (sorted by x): close nodes merged, round-off slope jumps smoothed."""
-    nodes = merge_close(nodes)
-    # a slope jump below KINK_SLOPE is round-off, not a kink: make the node smooth
-    tiny = np.abs(nodes[:, SL] - nodes[:, SR]) <= KINK_SLOPE
-    mean = 0.5 * (nodes[:, SL] + nodes[:, SR])
-    nodes[tiny, SL] = mean[tiny]
-    nodes[tiny, SR] = mean[tiny]
-    kink = (nodes[:, K] > 0) & ~tiny
-    if period > 0:
-        nodes[-1, X] = nodes[0, X] + period
-        kink[-1] = False
+    x, y, sl, sr, xd, kinks = _table_columns(nodes, float(period))
     return ConstraintTable(
-        x=nodes[:, X].copy(),
-        y=nodes[:, V].copy(),
-        slope_left=nodes[:, SL].copy(),
-        slope_right=nodes[:, SR].copy(),
-        contact_x=nodes[:, XD].copy(),
-        kinks=nodes[kink, X].copy(),
+        x=x,
+        y=y,
+        slope_left=sl,
+        slope_right=sr,
+        contact_x=xd,
+        kinks=kinks,
         period=float(period),
         resolution=float(resolution),
-        meta={"dx": float(dx), "nodes": float(nodes.shape[0])},
+        meta={"dx": float(dx), "nodes": float(x.size)},
     )
+
+
+@numba.njit(cache=True)
+def _table_columns(
+    nodes: NDArray[np.float64], period: float
+) -> tuple[
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+    NDArray[np.float64],
+]:
+    """(x, y, slope left, slope right, x_D, kinks) of the node rows: close nodes merged
+    (:func:`merge_close`), a slope jump at or below KINK_SLOPE made smooth (the mean slope
+    on both sides: round-off, not a kink), a periodic table's last node one period after
+    the first (never a kink)."""
+    m = merge_close(nodes)
+    n = m.shape[0]
+    x = np.empty(n)
+    y = np.empty(n)
+    sl = np.empty(n)
+    sr = np.empty(n)
+    xd = np.empty(n)
+    kinks = np.empty(n)
+    nk = 0
+    for i in range(n):
+        a = m[i, SL]
+        b = m[i, SR]
+        tiny = abs(a - b) <= KINK_SLOPE
+        if tiny:
+            a = b = 0.5 * (a + b)
+        x[i] = m[i, X]
+        y[i] = m[i, V]
+        sl[i] = a
+        sr[i] = b
+        xd[i] = m[i, XD]
+        if m[i, K] > 0 and not tiny and not (period > 0 and i == n - 1):
+            kinks[nk] = m[i, X]
+            nk += 1
+    if period > 0:
+        x[n - 1] = x[0] + period
+    return x, y, sl, sr, xd, kinks[:nk].copy()
 
 
 @numba.njit(cache=True)

@@ -222,6 +222,17 @@ def _seg_of(vx: NDArray[np.float64], p: float) -> int:
     return min(max(j, 0), vx.size - 2)
 
 
+@numba.njit(cache=True, inline="always")
+def _seg_from(vx: NDArray[np.float64], p: float, j: int) -> int:
+    """:func:`_seg_of` by a walk from segment j (a nearby segment: a few steps)."""
+    last = vx.size - 2
+    while j > 0 and vx[j] > p:
+        j -= 1
+    while j < last and vx[j + 1] <= p:
+        j += 1
+    return j
+
+
 @numba.njit(cache=True)
 def _psi_at(
     P: NDArray[np.float64], k: int, sh: float, R: float, x: float, phi: float, xv: float
@@ -412,7 +423,7 @@ def _stationary(
     if int(P[k, _KIND]) == PIECE_ARC:
         psi = math.atan(s)
         g, _, _, xd, _, r1 = _g_line(P, k, sh, R, x, phi, psi, xj, yj, s)
-        return g, psi, xd, r1, math.sin(psi), math.cos(psi)
+        return g, psi, xd, r1, math.sin(psi), math.cos(psi), 0.0
     if gplo > 0.0 > gphi:
         if gpplo < 0.0 and gpphi < 0.0:
             start = _hermite_root(lo, hi, gplo, gphi, gpplo, gpphi)
@@ -441,6 +452,8 @@ def _stationary(
         if a < nxt < b:
             if gpp < 0.0 and abs(nxt - psi) <= 1e-9:
                 d = nxt - psi
+                # dψ/dx of the root: -(∂G'/∂x)/G'' (x turns the wheel: ∂θ/∂x = 1/R)
+                gpx = (s * (r2 * sp + r1 * cp) + r2 * cp - r1 * sp) / R
                 return (
                     g + d * (gp + 0.5 * gpp * d),
                     nxt,
@@ -448,12 +461,13 @@ def _stationary(
                     r1 + r2 * d,
                     sp + cp * d,
                     cp - sp * d,
+                    -gpx / gpp,
                 )
         else:
             nxt = 0.5 * (a + b)
         last = b - a <= 4e-16 or (gpp < 0.0 and abs(nxt - psi) <= 1e-9)
         psi = nxt
-    return g, psi, xd, r1, sp, cp
+    return g, psi, xd, r1, sp, cp, math.nan
 
 
 @numba.njit(cache=True, inline="always")
@@ -592,7 +606,7 @@ def _cell_in(
     if convex and gp0 > 0.0 and gp1 < 0.0 and plo < phi_:
         a0, b0 = _curvature(R, dr0, r10, p0[6], p0[3], p0[4])
         a1, b1 = _curvature(R, dr1, r11, p1[6], p1[3], p1[4])
-        G, _, xd, r1, sp, cp = _stationary(
+        G, _, xd, r1, sp, cp, _ = _stationary(
             P,
             k,
             sh,
@@ -719,6 +733,18 @@ def _asin_above(q: float) -> float:
     return -_asin_below(-q)
 
 
+@numba.njit(cache=True, inline="always")
+def _cos_below(y: float) -> float:
+    """A lower bound of cos y on [-π, π] (Taylor to y¹⁰ less a bound of the remainder,
+    y¹²/12!, and of the round-off): 4e-3 below at |y| = π, 2e-5 at |y| = 2. The haversine
+    bound of the global solve takes it: no cos per segment."""
+    y2 = y * y
+    t = 1.0 + y2 * (
+        -0.5 + y2 * (1.0 / 24.0 + y2 * (-1.0 / 720.0 + y2 * (1.0 / 40320.0 - y2 / 3628800.0)))
+    )
+    return t - y2 * y2 * y2 * y2 * y2 * y2 / 479001600.0 - 1e-15
+
+
 @numba.njit(cache=True)
 def _global(
     pl: PolylineCase,
@@ -768,6 +794,10 @@ def _global(
     ga = _piece_of(P, n, phi - psw, g0)
     gb = _piece_of(P, n, phi + psw, g0)
     rw = R + drg
+    cpsw = math.cos(psw)
+    # the last piece's end on either side: its ψ, x_D and segment
+    rpsi, rx, rj = math.nan, x, j0
+    lpsi, lx, lj = math.nan, x, j0
     for step in range(2 * max(g0 - ga, gb - g0) + 1):
         # pieces from the centre outward: the best so far rises early and prunes more
         g = g0 + (step + 1) // 2 if step % 2 == 1 else g0 - step // 2
@@ -781,7 +811,7 @@ def _global(
         pmin = 0.0 if a <= 0.0 <= b else min(abs(a), abs(b))
         # the largest (r - R)·cos ψ on the piece (a flat's sub-piece lies below the circle)
         dm = P[k, _DRMAX]
-        top = dm if dm >= 0.0 else dm * math.cos(psw)
+        top = dm if dm >= 0.0 else dm * cpsw
         if ymax + top - _drop_lb(pmin, R) < best:
             continue
         if int(P[k, _KIND]) == PIECE_CHORD:
@@ -789,12 +819,24 @@ def _global(
             if v > best:
                 best, bt, bg, br, bs, bx = v, t, gg, r, s, xd
             continue
-        dra, _, _ = _rho(P, k, R, a + phi - sh)
-        drb, _, _ = _rho(P, k, R, b + phi - sh)
-        xa = x + (R + dra) * math.sin(a)
-        xb = x + (R + drb) * math.sin(b)
-        ja = _seg_of(vx, xa)
-        jb = _seg_of(vx, xb)
+        # the piece's ends on the rail: an end it shares with the piece done before on its
+        # side is taken from there (one wheel vertex), the segments are walked to from there
+        if g >= g0 and a == rpsi:
+            xa, ja = rx, rj
+        else:
+            dra, _, _ = _rho(P, k, R, a + phi - sh)
+            xa = x + (R + dra) * math.sin(a)
+            ja = _seg_from(vx, xa, rj if g > g0 else lj)
+        if g <= g0 and b == lpsi:
+            xb, jb = lx, lj
+        else:
+            drb, _, _ = _rho(P, k, R, b + phi - sh)
+            xb = x + (R + drb) * math.sin(b)
+            jb = _seg_from(vx, xb, ja)
+        if g >= g0:
+            rpsi, rx, rj = b, xb, jb
+        if g <= g0:
+            lpsi, lx, lj = a, xa, ja
         hav = int(P[k, _KIND]) == PIECE_HAVERSINE and P[k, _CEN] == 0.0
         hd = P[k, _C0]
         hw = TWO_PI * R / P[k, _C1] if hav else 0.0
@@ -826,10 +868,8 @@ def _global(
                 tlo = _asin_below(min(q0, q0d)) + phi - sh - 1e-9
                 thi = _asin_above(max(q1, q1d)) + phi - sh + 1e-9
                 tfar = min(max(abs(tlo), abs(thi)), hhalf)
-                drb = min(-0.5 * hd * (1.0 + math.cos(hw * tfar)), dm)
-                bound2 = (
-                    max(vy[j], vy[j + 1]) + drb * math.cos(psw) - _drop_lb(max(u / rw, pmin), R)
-                )
+                drb = min(-0.5 * hd * (1.0 + _cos_below(hw * tfar)), dm)
+                bound2 = max(vy[j], vy[j + 1]) + drb * cpsw - _drop_lb(max(u / rw, pmin), R)
                 if bound2 < best:
                     continue
             v, t, gg, r, s, xd, cv, cvp = _cell_in(pl, g, k, sh, j, x, phi, a, b, xa, xb, cv, cvp)
@@ -875,11 +915,12 @@ def _feature_eval(
     r: int,
     x: float,
     start: float = math.nan,
-) -> tuple[float, float, float, float]:
-    """(value, slope, x_D, ψ) of feature (t, g, r) at x by its own formula; value -inf where the
-    feature is not a real contact candidate (its wheel point off the piece, its rail point off
-    the segment), so that it never exceeds y_C^k. ``start``: a tangent's ψ at a nearby x (the
-    Newton's first iterate)."""
+) -> tuple[float, float, float, float, float]:
+    """(value, slope, x_D, ψ, dψ/dx) of feature (t, g, r) at x by its own formula; value -inf
+    where the feature is not a real contact candidate (its wheel point off the piece, its rail
+    point off the segment), so that it never exceeds y_C^k. ``start``: a tangent's ψ at x
+    predicted from a nearby x (:func:`_ahead`: the Newton's first iterate); dψ/dx: a
+    tangent's (nan if not known), for the next prediction."""
     P, n, R, vx, vy, sl = pl.P, pl.n, pl.R, pl.vx, pl.vy, pl.sl
     phi = phase + x / R
     k, sh = _shift(g, n)
@@ -887,8 +928,8 @@ def _feature_eval(
         psi = P[k, _T1] + sh - phi
         G, _, _, xd, dr, _ = _g_line(P, k, sh, R, x, phi, psi, vx[r], vy[r], sl[r])
         if xd < vx[r] - 1e-13 or xd > vx[r + 1] + 1e-13:
-            return -np.inf, 0.0, xd, psi
-        return G, _slope_wheel_vertex(R, math.sin(psi), math.cos(psi), dr, sl[r]), xd, psi
+            return -np.inf, 0.0, xd, psi, math.nan
+        return G, _slope_wheel_vertex(R, math.sin(psi), math.cos(psi), dr, sl[r]), xd, psi, math.nan
     lo = P[k, _T0] + sh - phi
     hi = P[k, _T1] + sh - phi
     if t == FT_V:
@@ -896,16 +937,16 @@ def _feature_eval(
         psi = vp[0]
         G, _, _, xd = _at_point(R, x, vy[r], vp)
         if psi < lo - 1e-13 or psi > hi + 1e-13:
-            return -np.inf, 0.0, xd, psi
-        return G, _slope_rail_vertex(R, vp[3], vp[4], vp[1], vp[2]), xd, psi
+            return -np.inf, 0.0, xd, psi, math.nan
+        return G, _slope_rail_vertex(R, vp[3], vp[4], vp[1], vp[2]), xd, psi, math.nan
     lo = max(lo, -CLIP)
     hi = min(hi, CLIP)
-    G, psi, xd, r1, sp, cp = _stationary(
+    G, psi, xd, r1, sp, cp, dpsi = _stationary(
         P, k, sh, R, x, phi, lo, hi, vx[r], vy[r], sl[r], math.nan, math.nan, start
     )
     if not (lo <= psi <= hi) or xd < vx[r] - 1e-13 or xd > vx[r + 1] + 1e-13:
-        return -np.inf, 0.0, xd, psi
-    return G, _slope_tangent(R, sp, cp, r1, sl[r]), xd, psi
+        return -np.inf, 0.0, xd, psi, math.nan
+    return G, _slope_tangent(R, sp, cp, r1, sl[r]), xd, psi, dpsi
 
 
 @numba.njit(cache=True)
@@ -949,6 +990,12 @@ def _handover_gap(
     return sign * (gp if lo_end else -gp)
 
 
+@numba.njit(cache=True, inline="always")
+def _ahead(psi: float, dpsi: float, dx: float) -> float:
+    """A tangent's ψ predicted ``dx`` ahead from its ψ and dψ/dx (ψ itself if dψ/dx is nan)."""
+    return psi if math.isnan(dpsi) else psi + dpsi * dx
+
+
 @numba.njit(cache=True)
 def _change_point(
     pl: PolylineCase,
@@ -965,13 +1012,22 @@ def _change_point(
     flo: float,
     fhi: float,
     tol: float,
-) -> tuple[float, float]:
-    """The bracket [lo, hi] (width <= tol) of the change from A (f > 0) to B (f < 0) by Illinois
+    tangents: tuple[float, float, float, float, float, float] = (
+        0.0,
+        math.nan,
+        math.nan,
+        0.0,
+        math.nan,
+        math.nan,
+    ),
+) -> tuple[float, float, tuple[float, float, float, float, float, float]]:
+    """(lo, hi, tangents): the bracket [lo, hi] (width <= tol) of the change from A (f > 0) to B (f < 0) by Illinois
     false position on f: the difference of the two features' own values, or at a C¹ handover
     :func:`_handover_gap` (bisection where f is not finite; stops where f is nan, as the
-    bisection on the sign did)."""
+    bisection on the sign did). ``tangents``: (x, ψ, dψ/dx) of A, then of B, where a tangent
+    feature was last solved (:func:`_feature_eval`): its Newton starts from their prediction."""
     side = 0
-    psa = psb = math.nan  # the features' ψ at the last x (a tangent's Newton starts there)
+    xa, psa, dpa, xb, psb, dpb = tangents
     for _ in range(200):
         if not hi - lo > tol:
             break
@@ -986,8 +1042,12 @@ def _change_point(
         if handover:
             fm = _handover_gap(pl, phase, tA, gA, rA, tB, gB, rB, m)
         else:
-            va, _, _, psa = _feature_eval(pl, phase, tA, gA, rA, m, psa)
-            vb, _, _, psb = _feature_eval(pl, phase, tB, gB, rB, m, psb)
+            va, _, _, pa, da = _feature_eval(pl, phase, tA, gA, rA, m, _ahead(psa, dpa, m - xa))
+            vb, _, _, pb, db = _feature_eval(pl, phase, tB, gB, rB, m, _ahead(psb, dpb, m - xb))
+            if tA == FT_T and va > -np.inf:
+                xa, psa, dpa = m, pa, da
+            if tB == FT_T and vb > -np.inf:
+                xb, psb, dpb = m, pb, db
             fm = va - vb
         if fm > 0.0:
             lo, flo = m, fm
@@ -1003,7 +1063,7 @@ def _change_point(
             lo = hi = m
         else:  # neither feature is a candidate here
             break
-    return lo, hi
+    return lo, hi, (xa, psa, dpa, xb, psb, dpb)
 
 
 @numba.njit(cache=True)
@@ -1077,15 +1137,16 @@ def sweep_kernel(
         xn = math.nan
         plain = False  # True: a plain node (one feature) at xn from a global solve
         da = db = 0.0
+        # a tangent feature's (x, ψ, dψ/dx) where it was last solved: A's, then B's
+        tans = (xa, math.nan, math.nan, xa, math.nan, math.nan)
         if not same:
-            da = (
-                _feature_eval(pl, phase, tA, gA, rA, xa)[0]
-                - _feature_eval(pl, phase, tB, gB, rB, xa)[0]
-            )
-            db = (
-                _feature_eval(pl, phase, tA, gA, rA, xb)[0]
-                - _feature_eval(pl, phase, tB, gB, rB, xb)[0]
-            )
+            va, _, _, pa, dpa = _feature_eval(pl, phase, tA, gA, rA, xa)
+            vb, _, _, pb, dpb = _feature_eval(pl, phase, tB, gB, rB, xa)
+            va2 = _feature_eval(pl, phase, tA, gA, rA, xb, _ahead(pa, dpa, xb - xa))[0]
+            vb2 = _feature_eval(pl, phase, tB, gB, rB, xb, _ahead(pb, dpb, xb - xa))[0]
+            da = va - vb
+            db = va2 - vb2
+            tans = (xa, pa, dpa, xa, pb, dpb)
             # two features within the tolerance of each other over the whole interval (a wheel
             # corner creeping over a rail vertex): where one hands over is immaterial
             same = abs(da) <= hermite_tol and abs(db) <= hermite_tol
@@ -1100,15 +1161,15 @@ def sweep_kernel(
                 direct = da >= -1e-15 and db <= 1e-15
             if direct:
                 # a kink: the sign change of the difference of the two features' own values
-                lo, hi = _change_point(
-                    pl, phase, False, tA, gA, rA, tB, gB, rB, lo, hi, da, db, 1e-13 * scale
+                lo, hi, tans = _change_point(
+                    pl, phase, False, tA, gA, rA, tB, gB, rB, lo, hi, da, db, 1e-13 * scale, tans
                 )
             elif ho:
                 # a C¹ handover: the tangent point reaching its cell's end
                 fa = _handover_gap(pl, phase, tA, gA, rA, tB, gB, rB, xa)
                 fb = _handover_gap(pl, phase, tA, gA, rA, tB, gB, rB, xb)
                 if fa > 0.0 > fb:
-                    lo, hi = _change_point(
+                    lo, hi, _ = _change_point(
                         pl, phase, True, tA, gA, rA, tB, gB, rB, lo, hi, fa, fb, 1e-13 * scale
                     )
                     direct = True  # located: no bisection on the cells below
@@ -1127,8 +1188,11 @@ def sweep_kernel(
                     break
             if not third:
                 xs = 0.5 * (lo + hi)
-                va, sa, _, _ = _feature_eval(pl, phase, tA, gA, rA, xs)
-                vb, sb, xdb, _ = _feature_eval(pl, phase, tB, gB, rB, xs)
+                xr, pa, dpa, xr2, pb, dpb = tans
+                va, sa, _, _, _ = _feature_eval(pl, phase, tA, gA, rA, xs, _ahead(pa, dpa, xs - xr))
+                vb, sb, xdb, _, _ = _feature_eval(
+                    pl, phase, tB, gB, rB, xs, _ahead(pb, dpb, xs - xr2)
+                )
                 vg, tg, gg, rg, _, _, _ = _global(pl, ymax, drg, phase, xs, hint, tA, gA, rA)
                 top = max(va, vb)
                 isab = (tg == tA and gg == gA and rg == rA) or (tg == tB and gg == gB and rg == rB)
