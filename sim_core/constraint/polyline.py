@@ -410,15 +410,16 @@ def _stationary(
     start: float = math.nan,
     gpplo: float = math.nan,
     gpphi: float = math.nan,
-) -> tuple[float, float, float, float]:
-    """(G, ψ, x_D, r') at the root of G' in (lo, hi) (G'(lo) > 0 > G'(hi)).
+) -> tuple[float, float, float, float, float, float, float]:
+    """(G, ψ, x_D, r', sin ψ, cos ψ, dψ/dx) at the root of G' in (lo, hi) (G'(lo) > 0 > G'(hi)).
 
     Safeguarded Newton on G' (bisection where a step leaves the bracket or G'' >= 0), from
     the root of the cubic Hermite interpolant of G' if its values and G'' at the ends
     (``gplo``, ``gphi``, ``gpplo``, ``gpphi``) are given, from the secant if only the values
     are, else from ``start`` (the root at a nearby x) if it is inside, else from the
-    midpoint. The last Newton step (<= 1e-9 rad, leaving ~1e-18 rad) is carried into G, x_D
-    and r' to second order (G exact to ~1e-27 m) instead of a new evaluation.
+    midpoint. The last Newton step (<= 1e-9 rad, leaving ~1e-18 rad) is carried into G, x_D,
+    r', sin ψ and cos ψ to second order (G exact to ~1e-27 m) instead of a new evaluation;
+    dψ/dx (nan if the Newton did not end on such a step) predicts the root at a nearby x.
     """
     if int(P[k, _KIND]) == PIECE_ARC:
         psi = math.atan(s)
