@@ -234,3 +234,23 @@ def test_flat_wheel_on_a_step_rail_against_general(kind: str, height: float) -> 
         exact, _ = evaluate_exact(wheel, rail, xq, phase=phase)
         assert np.abs(fast.evaluate(xq) - exact).max() < 1e-11
         assert fast.kinks.size >= 1
+
+
+@pytest.mark.parametrize("kind", ["ideal_flat", "rounded_flat"])
+def test_flat_wheel_on_a_dented_step_rail(kind: str) -> None:
+    """A dented step rail is sampled with the step's riser as a 1e-12 m ramp
+    (sim_core.dent_overlay): the sweep takes it as a step's riser, on a grid of the rail's
+    sampling (a grid of the ramp's width was 1e11 intervals: out of memory or >600 s), and
+    holds the brute-force values across the riser and the dent."""
+    wheel = WHEELS[kind]()
+    xd = np.linspace(-0.05, 0.05, 201)
+    depth = 3e-5 * np.exp(-(((xd - 0.01) / 0.004) ** 2))
+    rail = dented_rail(RailProfile.step(1e-4, 0.0), xd, depth, -0.2, 0.2)
+    assert np.diff(rail.x).min() < 1e-11
+    assert supports_polyline(wheel, rail)
+    rng = np.random.default_rng(5)
+    xq = np.sort(np.concatenate((rng.uniform(-0.03, 0.03, 30), rng.uniform(-2e-4, 2e-4, 10))))
+    for phase in (0.0, -0.01 / R):
+        t = tabulate_constraint(wheel, rail, -0.03, 0.03, phase=phase)
+        assert t.x.size < 5000
+        assert np.abs(reference(wheel, rail, xq, phase) - t.evaluate(xq)).max() < 1e-11

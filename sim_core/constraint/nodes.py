@@ -148,9 +148,23 @@ def check_range(x_start: float, x_end: float) -> tuple[float, float]:
     return a, b
 
 
+RISER = 1e-9
+"""A sampled rail's segments shorter than this (m) are a step's riser, not a feature: a
+dented step rail's 1e-12 m ramp (:func:`sim_core.dent_overlay.base_samples`)."""
+
+
 def resolution(wheel: WheelOutline, rail: RailProfile) -> float:
-    """The finest input feature (m): rail sampling, λ/16, wheel sample arc, flat length/16, <= 10 mm."""
-    return min(rail.min_feature_length, wheel.min_feature_length, MAX_RESOLUTION)
+    """The finest input feature (m): rail sampling (risers aside), λ/16, wheel sample arc,
+    flat length/16, <= 10 mm.
+
+    A dented 0.1 mm step rail sampled every 0.5 mm has the resolution of a 0.5 mm sampling,
+    as its step rail has the wheel's (a resolution of its 1e-12 m riser made tabulation
+    grids of 1e11 intervals: out of memory or >600 s)."""
+    feature = rail.min_feature_length
+    if rail.kind == "sampled" and feature < RISER:
+        dx = np.diff(rail.x)
+        feature = float(dx[dx >= RISER].min(initial=math.inf))
+    return min(feature, wheel.min_feature_length, MAX_RESOLUTION)
 
 
 def stretch(a: float, b: float, step: float, period: float) -> tuple[float, float, int]:

@@ -56,6 +56,7 @@ from sim_core.constraint.nodes import (
     HERMITE_TOL,
     MAX_STEPS,
     NCOL,
+    RISER,
     SL,
     SR,
     XD,
@@ -122,8 +123,9 @@ FT_T, FT_W, FT_V = 0, 1, 2
 """Feature types: piece interior tangent to a segment, wheel vertex on a segment, rail vertex under a piece."""
 
 MAX_RAIL_SLOPE = 0.2
-"""The sweep is used on sampled rails whose segments are no steeper than this (a dented
-step's 1e-12 m riser keeps the general ψ-search; a step rail's vertical riser does not)."""
+"""The sweep is used on sampled rails whose segments are no steeper than this, risers
+(:data:`sim_core.constraint.nodes.RISER`: a dented step's 1e-12 m ramp) aside: the sweep
+carries the wheel on a riser's two corners as on a step rail's vertical riser."""
 
 CLIP = 0.5
 """|ψ| bound (rad) of the cells of the restricted solves (x_D monotone in ψ inside)."""
@@ -135,10 +137,10 @@ r - R: the bound of the global solve then skips the rail segments that cannot re
 
 def supports_polyline(wheel: WheelOutline, rail: RailProfile) -> bool:
     """True if the polyline sweep applies: an out-of-round wheel on a step rail or on a
-    sampled rail whose segments are no steeper than ``MAX_RAIL_SLOPE``.
+    sampled rail whose segments are no steeper than ``MAX_RAIL_SLOPE``, risers aside.
 
-    A step's riser is a vertical segment (only its two corners can carry the wheel); a
-    sampled rail's near-vertical riser (a dented step's 1e-12 m ramp) keeps the ψ-search.
+    A step's riser is a vertical segment (only its two corners can carry the wheel), and so
+    is a dented step's 1e-12 m ramp.
     """
     if wheel.kind == "round":
         return False
@@ -146,8 +148,9 @@ def supports_polyline(wheel: WheelOutline, rail: RailProfile) -> bool:
         return True
     if rail.kind != "sampled" or rail.x.size < 2:
         return False
-    s = np.abs(np.diff(rail.y) / np.diff(rail.x))
-    return bool(s.max() <= MAX_RAIL_SLOPE)
+    dx = np.diff(rail.x)
+    s = np.abs(np.diff(rail.y)[dx >= RISER] / dx[dx >= RISER])
+    return bool(s.size == 0 or s.max() <= MAX_RAIL_SLOPE)
 
 
 def polyline_pieces(wheel: WheelOutline) -> NDArray[np.float64]:
