@@ -72,11 +72,18 @@ __all__ = [
     "CONVEX",
     "FALLING",
     "RISING",
+    "UNCERTIFIED",
+    "cell_cover",
     "certified_cells",
     "contact_angle_bound",
+    "offset_range",
+    "uncertified_spans",
 ]
 
 CONCAVE, CONVEX, RISING, FALLING = 0, 1, 2, 3
+UNCERTIFIED = 4
+"""A cell on which no shape is proved: the piece sweep must not be asked for it (its
+wheel positions go to the ψ-search, :mod:`sim_core.constraint.cosine_hybrid`)."""
 
 MAX_HALVINGS = 14
 """How often a piece may be halved before the case counts as not certified."""
@@ -201,11 +208,21 @@ def certified_cells(
     wheel: WheelOutline, rail: RailProfile, pieces: NDArray[np.float64]
 ) -> NDArray[np.float64] | None:
     """The wheel's piece table ``pieces`` (:func:`~sim_core.constraint.wheel_pieces.wheel_pieces`)
-    cut into cells certified on the cosine ``rail`` (shape in column 6), or None.
+    cut into cells certified on the cosine ``rail`` (shape in column 6), or None if some cell
+    is not (:func:`cell_cover` has it marked ``UNCERTIFIED``)."""
+    cells = cell_cover(wheel, rail, pieces)
+    return None if np.any(cells[:, _CONC] == UNCERTIFIED) else cells
+
+
+def cell_cover(
+    wheel: WheelOutline, rail: RailProfile, pieces: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """The wheel's piece table ``pieces`` cut into cells on the cosine ``rail``, the shape of
+    each in column 6: certified (``CONCAVE`` .. ``FALLING``) or ``UNCERTIFIED``.
 
     Ideal-flat chords are kept whole (solved per crest window, :mod:`sim_core.constraint.flat_cosine`)
-    and marked ``CONCAVE`` (unused). None if some cell cannot be certified after
-    ``MAX_HALVINGS`` halvings.
+    and marked ``CONCAVE`` (unused). A cell that fits no shape after ``MAX_HALVINGS`` halvings
+    is ``UNCERTIFIED``; adjacent haversine cells of one shape (uncertified ones too) are merged.
     """
     if rail.kind != "cosine":
         raise ValueError(f"cosine cells: the rail must be a cosine, got a {rail.kind!r} rail")
@@ -236,13 +253,13 @@ def certified_cells(
         while stack:
             u0, u1, depth = stack.pop()
             shape = _shape(row, R, u0, u1, psi_max, ra, k)
-            if shape < 0:
-                if depth >= MAX_HALVINGS:
-                    return None
+            if shape < 0 and depth < MAX_HALVINGS:
                 um = 0.5 * (u0 + u1)
                 stack.append((um, u1, depth + 1))
                 stack.append((u0, um, depth + 1))
                 continue
+            if shape < 0:
+                shape = UNCERTIFIED
             prev = out_rows[-1] if out_rows else None
             if (
                 kind == _HAVERSINE
@@ -259,3 +276,31 @@ def certified_cells(
                 cell[_C0] = row[_C0] + row[_C1] * (u0 - row[_T0])
             out_rows.append(cell)
     return np.array(out_rows, dtype=np.float64)
+
+
+def uncertified_spans(cells: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Rows (u0, u1): the wheel angles (rad, one turn) of :func:`cell_cover`'s ``UNCERTIFIED``
+    cells, adjacent ones joined; none (shape (0, 2)) if every cell is certified."""
+    spans: list[list[float]] = []
+    for u0, u1 in cells[cells[:, _CONC] == UNCERTIFIED][:, [_T0, _T1]]:
+        if spans and spans[-1][1] == u0:
+            spans[-1][1] = float(u1)
+        else:
+            spans.append([float(u0), float(u1)])
+    return np.array(spans, dtype=np.float64).reshape(-1, 2)
+
+
+def offset_range(cells: NDArray[np.float64], R: float, a: float, b: float) -> Interval:
+    """(min, max) of r - R (m) over the wheel angles [a, b] (rad, any turn, b - a < 2π) of the
+    cover ``cells`` (one turn from its first θ0; exact per piece, :func:`_outline`)."""
+    start = float(cells[0, _T0])
+    m = math.floor((a - start) / TWO_PI)
+    a, b = a - TWO_PI * m, b - TWO_PI * m
+    lo, hi = math.inf, -math.inf
+    for shift in (0.0, TWO_PI):  # [a, b] may run past the turn's end into the next
+        for row in cells:
+            u0, u1 = max(a, row[_T0] + shift), min(b, row[_T1] + shift)
+            if u0 <= u1:
+                rho = _outline(row, R, u0 - shift, u1 - shift)[0]
+                lo, hi = min(lo, rho[0] - R), max(hi, rho[1] - R)
+    return lo, hi

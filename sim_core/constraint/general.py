@@ -66,7 +66,7 @@ from sim_core.wheel import (
     wheel_offset,
 )
 
-__all__ = ["evaluate_exact", "tabulate_general"]
+__all__ = ["evaluate_exact", "general_nodes", "tabulate_general"]
 
 
 class SearchCase(NamedTuple):
@@ -651,7 +651,21 @@ def tabulate_general(
     elif rail.kind == "cosine" and wheel.kind == "round":
         periodic = rail.wavelength
     x0, x1, nint = stretch(a, b, step, periodic)
+    nodes = general_nodes(wheel, rail, phase, x0, x1, nint, periodic > 0)
+    return table_from_nodes(nodes, periodic, resolution, step)
+
+
+def general_nodes(
+    wheel: WheelOutline,
+    rail: RailProfile,
+    phase: float,
+    x0: float,
+    x1: float,
+    nint: int,
+    periodic: bool = False,
+) -> NDArray[np.float64]:
+    """Node rows (:mod:`sim_core.constraint.nodes`) of the ψ-search over exactly [x0, x1],
+    from ``nint`` grid intervals (refined where needed), sorted by x."""
     sc, st, gmax = _general_args(wheel, rail)
     args = (float(phase), _dpsi(wheel, rail), gmax, sc, st)
-    nodes = _tabulate_general(x0, x1, nint, periodic > 0, args)
-    return table_from_nodes(nodes, periodic, resolution, step)
+    return _tabulate_general(float(x0), float(x1), int(nint), periodic, args)

@@ -21,8 +21,12 @@ Which method (one module each, all compiled with numba):
   chord cut into the rail's crest windows, each in closed form,
   :mod:`sim_core.constraint.flat_cosine`), and a rounded flat or sampled outline on a cosine
   whose pieces cut into cells proved to hold at most one local maximum each
-  (:mod:`sim_core.constraint.cosine_cells`; not, e.g., an l²/16R-deep flat on the paper's
-  cosine): the piece sweep (:mod:`sim_core.constraint.wheel_pieces`);
+  (:mod:`sim_core.constraint.cosine_cells`): the piece sweep
+  (:mod:`sim_core.constraint.wheel_pieces`);
+- such a wheel whose cells are only partly certified (e.g. an l²/16R-deep flat on the
+  paper's cosine: the hollow's middle bridges crests): the sweep wherever the uncertified
+  cells cannot carry the wheel, the ψ-search only in the windows where they can, a few cm
+  per turn (:mod:`sim_core.constraint.cosine_hybrid`);
 - an out-of-round wheel on a sampled rail: the wheel's pieces against the rail's
   segments inside the stretches where the out-of-roundness can reach the contact, the
   round wheel's closed form (made once per rail and radius, kept) elsewhere
@@ -58,6 +62,7 @@ from __future__ import annotations
 
 import math
 
+from sim_core.constraint.cosine_hybrid import supports_cosine_hybrid, tabulate_cosine_hybrid
 from sim_core.constraint.flat_rail import flat_constraint, ideal_flat_on_flat
 from sim_core.constraint.general import tabulate_general
 from sim_core.constraint.nodes import check_range
@@ -129,6 +134,8 @@ def tabulate_constraint(
         return tabulate_round_polyline(R, rail, a, b, dx, resolution)
     if supports_pieces(wheel, rail):
         return tabulate_wheel_pieces(wheel, rail, a, b, float(phase), dx, resolution)
+    if supports_cosine_hybrid(wheel, rail):
+        return tabulate_cosine_hybrid(wheel, rail, a, b, float(phase), dx, resolution)
     if supports_polyline(wheel, rail):
         return tabulate_polyline(wheel, rail, a, b, float(phase), dx, resolution)
     return tabulate_general(wheel, rail, a, b, float(phase), dx, resolution)

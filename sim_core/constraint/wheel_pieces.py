@@ -55,7 +55,8 @@ from sim_core.constraint.cosine_cells import (
     CONVEX,
     FALLING,
     RISING,
-    certified_cells,
+    UNCERTIFIED,
+    cell_cover,
     contact_angle_bound,
 )
 from sim_core.constraint.flat_cosine import (
@@ -93,6 +94,8 @@ __all__ = [
     "PIECE_CHORD",
     "PIECE_HAVERSINE",
     "PIECE_LINEAR",
+    "cosine_cover",
+    "needs_cells",
     "supports",
     "tabulate_pieces",
     "tabulate_wheel_pieces",
@@ -147,13 +150,13 @@ def _plain(wheel: WheelOutline, rail: RailProfile) -> bool:
     return False
 
 
-_CELLS: dict[tuple[object, ...], tuple[NDArray[np.float64], float] | None] = {}
-"""Certified cells and ψ_max per wheel and cosine (a passage's wheel meets its rail many times)."""
+_CELLS: dict[tuple[object, ...], tuple[NDArray[np.float64], float]] = {}
+"""Cell cover and ψ_max per wheel and cosine (a passage's wheel meets its rail many times)."""
 
 
-def _certified(wheel: WheelOutline, rail: RailProfile) -> tuple[NDArray[np.float64], float] | None:
-    """(cells, ψ_max) of the wheel on a cosine rail (:mod:`sim_core.constraint.cosine_cells`),
-    None if not certified; kept for up to 64 pairs (read-only: do not modify)."""
+def cosine_cover(wheel: WheelOutline, rail: RailProfile) -> tuple[NDArray[np.float64], float]:
+    """(cells, ψ_max) of the wheel on a cosine rail (:func:`~sim_core.constraint.cosine_cells.cell_cover`:
+    some may be ``UNCERTIFIED``); kept for up to 64 pairs (read-only: do not modify)."""
     key = (
         wheel.kind,
         wheel.radius,
@@ -168,16 +171,31 @@ def _certified(wheel: WheelOutline, rail: RailProfile) -> tuple[NDArray[np.float
         return _CELLS[key]
     except KeyError:
         pass
-    cells = certified_cells(wheel, rail, wheel_pieces(wheel))
-    got = None if cells is None else (cells, contact_angle_bound(wheel, rail))
+    got = (cell_cover(wheel, rail, wheel_pieces(wheel)), contact_angle_bound(wheel, rail))
     if len(_CELLS) >= 64:  # (one dict operation each: safe between the service's threads)
         _CELLS.clear()
     _CELLS[key] = got
     return got
 
 
+def _certified(wheel: WheelOutline, rail: RailProfile) -> tuple[NDArray[np.float64], float] | None:
+    """:func:`cosine_cover` if every cell is certified, else None."""
+    cells, psi_max = cosine_cover(wheel, rail)
+    return None if np.any(cells[:, _CONC] == UNCERTIFIED) else (cells, psi_max)
+
+
+def needs_cells(wheel: WheelOutline, rail: RailProfile) -> bool:
+    """True if the wheel's own pieces are not enough on this rail: a rounded flat or a sampled
+    outline on a cosine the plain sweep does not cover (it takes :func:`cosine_cover`'s cells)."""
+    return (
+        rail.kind == "cosine"
+        and wheel.kind in ("rounded_flat", "sampled")
+        and not _plain(wheel, rail)
+    )
+
+
 def supports(wheel: WheelOutline, rail: RailProfile) -> bool:
-    """True if the piece sweep applies (G has at most one interior maximum on every piece or cell).
+    """True if the piece sweep alone applies (G has at most one interior maximum on every piece or cell).
 
     Any out-of-round wheel on a flat rail; a sampled wheel (pieces curved like the
     wheel, 1/R) on a cosine whose curvature a(2π/λ)² is at most ``0.1/R``; an ideal flat
@@ -185,13 +203,15 @@ def supports(wheel: WheelOutline, rail: RailProfile) -> bool:
     is cut into crest windows, each solved in closed form). A rounded flat (its G'' changes
     sign near the haversine's inflections at a phase-dependent angle) or a sampled wheel on
     any other cosine: if its pieces cut into certified cells
-    (:func:`~sim_core.constraint.cosine_cells.certified_cells`); else the general ψ-search.
+    (:func:`~sim_core.constraint.cosine_cells.certified_cells`). If only some cells are
+    certified, the sweep still takes every wheel position the others cannot reach
+    (:mod:`sim_core.constraint.cosine_hybrid`).
     """
     if wheel.kind == "round":
         return False
     if _plain(wheel, rail):
         return True
-    if rail.kind == "cosine" and wheel.kind in ("rounded_flat", "sampled"):
+    if needs_cells(wheel, rail):
         return _certified(wheel, rail) is not None
     return False
 
@@ -496,7 +516,9 @@ def _concave_span(pc: PiecesCase, g: int, x: float, phi: float) -> tuple[float, 
     a = max(P[k, _T0] + sh - phi, -pc.psi_max)
     b = min(P[k, _T1] + sh - phi, pc.psi_max)
     shape = int(P[k, _CONC])
-    if a >= b or shape == CONVEX:
+    if a >= b or shape in (CONVEX, UNCERTIFIED):
+        # (an UNCERTIFIED cell gives its ends only: values of G that never exceed its maximum,
+        # for callers that take it only where it cannot carry the wheel)
         return math.nan, math.nan
     if shape == CONCAVE:
         return a, b
