@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 
 from sim_core.constraint import tabulate_constraint
 from sim_core.constraint.cosine_cells import certified_cells, contact_angle_bound
+from sim_core.constraint.cosine_hybrid import supports_cosine_hybrid
 from sim_core.constraint.wheel_pieces import supports, wheel_pieces
 from sim_core.rail import RailProfile
 from sim_core.wheel import WheelOutline
@@ -130,11 +131,13 @@ def test_certified_cells_have_one_local_maximum(case: str) -> None:
             assert changes <= (1 if shape >= 2 else 0)
 
 
-def test_uncertified_cases_keep_the_general_search() -> None:
+def test_uncertified_cells_are_marked() -> None:
     """Not covered: a flat whose concave middle is curved less than the rail's crests, e.g. the
     site's 80 mm, l²/16R-deep flat on the paper's cosine (the shortcut's failing case): G'' at
-    the flat's centre then takes the sign of the rail's curvature, and G'' = G''' = 0 occurs
-    (tabulate_constraint's answer there is the ψ-search's: test_constraint_fast)."""
+    the flat's centre then takes the sign of the rail's curvature, and G'' = G''' = 0 occurs.
+    The cover marks those cells UNCERTIFIED, the sweep alone is refused, and the hybrid takes
+    the case (test_constraint_cosine_hybrid)."""
     wheel = site_flat(0.08)
     assert supports(wheel, SITE) and not supports(wheel, PAPER)
     assert certified_cells(wheel, PAPER, wheel_pieces(wheel)) is None
+    assert supports_cosine_hybrid(wheel, PAPER) and not supports_cosine_hybrid(wheel, SITE)
