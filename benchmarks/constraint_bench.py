@@ -140,6 +140,20 @@ def run(repeat: int = 5, general: bool = True) -> list[dict[str, float | str]]:
             general,
         ),
         (
+            "rounded flat 80 mm, 6 m, cosine 0.1 mm / 5 cm (partly certified)",
+            WheelOutline.rounded_flat(0.46, 0.08, 0.08**2 / (16 * 0.46)),
+            RailProfile.cosine(1e-4, 0.05),
+            6.0,
+            general,
+        ),
+        (
+            "rounded flat 80 mm, 6 m, cosine -0.2 mm / 8 cm (partly certified)",
+            WheelOutline.rounded_flat(0.46, 0.08, 0.08**2 / (16 * 0.46)),
+            RailProfile.cosine(-2e-4, 0.08),
+            6.0,
+            general,
+        ),
+        (
             "rounded flat 80 mm, 1 m, 0.1 mm step rail",
             WheelOutline.rounded_flat(0.46, 0.08, 0.08**2 / (16 * 0.46)),
             RailProfile.step(1e-4, 0.5),

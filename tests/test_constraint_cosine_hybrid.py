@@ -63,7 +63,7 @@ def test_hybrid_over_a_passage() -> None:
     assert len(contact_windows(wheel, rail, 0.0, fast.x[0], fast.x[-1])) == 3
     xq = np.random.default_rng(3).uniform(0.0, 6.0, 50000)
     diff = np.abs(fast.evaluate(xq) - gen.evaluate(xq))
-    assert np.quantile(diff, 0.999) < 1e-12 and diff.max() < 1e-11
+    assert diff.max() < 1e-12
     kf = fast.kinks[(fast.kinks > 0.0) & (fast.kinks < 6.0)]
     kg = gen.kinks[(gen.kinks > 0.0) & (gen.kinks < 6.0)]
     assert kf.size == kg.size and kf.size >= 2 and np.abs(kf - kg).max() < 1e-9

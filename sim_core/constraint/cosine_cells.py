@@ -21,8 +21,10 @@ wheel position x. A cell is certified with one *shape* (the piece table's ``conc
   by Illinois at each x): G is concave on one side of ψ₂ (at most one interior maximum
   there) and convex on the other (its maximum at the cell's end on that side).
 
-Cells that fit none are halved (down to 2⁻¹⁴ of the piece); if one still fits none, the
-case is not certified (:func:`certified_cells` returns None) and keeps the ψ-search. Adjacent
+Cells that fit none are halved (down to 2⁻¹⁴ of the piece); if one still fits none, it is
+``UNCERTIFIED`` (:func:`cell_cover`; :func:`certified_cells` then returns None): the sweep
+takes such a case only at the wheel positions where those cells cannot carry the wheel, the
+ψ-search the few cm per turn where they can (:mod:`sim_core.constraint.cosine_hybrid`). Adjacent
 haversine cells of one shape are merged (each property holds pointwise, so on the union). A
 sampled outline's pieces are first tried all at once (one interval for r and one for r' over
 the whole outline): on a cosine curved less than about 1/R they are all CONCAVE.
@@ -37,14 +39,16 @@ maximum in |ψ| ≤ ψ_max, found exactly; the wheel's global maximum is the bes
 of the cell ends. Not covered: wheel angles where the rail's bound on G'' exceeds |W| and its
 bound on G''' exceeds |W'|, e.g. the centre of a haversine (W' = 0 there) whose concave middle
 is curved less than the rail's crests: the 80 mm, l²/16R-deep flat on the paper's a = 0.1 mm,
-λ = 5 cm. There G'' = G''' = 0 does occur along the flat, so no cell around such a point fits
-a shape however small; these cases keep the ψ-search.
+λ = 5 cm (its middle ±0.035 rad). There G'' = G''' = 0 does occur along the flat, so no cell
+around such a point fits a shape however small; there the hollow bridges crests and G has
+several local maxima. Those wheel positions go to the ψ-search
+(:mod:`sim_core.constraint.cosine_hybrid`).
 
 Worked example: an 80 mm rounded flat (depth l²/16R = 0.87 mm, R = 0.46 m) on the example
 site's cosine a = 2 µm, λ = 6 cm (rail curvature at most 0.022 1/m; the flat's middle is
 concave, curvature -0.5 1/m) is certified in a few cells: convex in the middle, rising/falling cells near the outline's
 inflections (G'' changes sign there at a phase-dependent angle), concave towards the ends
-and on the round rest; on the paper's cosine it is not:
+and on the round rest; on the paper's cosine its middle is not:
 
     >>> from sim_core.constraint.wheel_pieces import wheel_pieces
     >>> from sim_core.rail import RailProfile
@@ -55,6 +59,8 @@ and on the round rest; on the paper's cosine it is not:
     [0, 2, 1, 3, 0]
     >>> certified_cells(w, RailProfile.cosine(1e-4, 0.05), wheel_pieces(w)) is None
     True
+    >>> uncertified_spans(cell_cover(w, RailProfile.cosine(1e-4, 0.05), wheel_pieces(w))).round(3)
+    array([[-0.035,  0.035]])
 """
 
 from __future__ import annotations

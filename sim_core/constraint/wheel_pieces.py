@@ -19,6 +19,9 @@ more than 0.1/R), the pieces are cut into *certified cells*
 (:mod:`sim_core.constraint.cosine_cells`): concave, convex, or with G'' changing sign once at
 an x-dependent ψ₂ (G concave on one side: the interior feature is that part's maximum, and a
 vertex on the convex side stands alone), each clipped to the angles that can carry the wheel.
+An ``UNCERTIFIED`` cell gives only its ends (values of G, never above its maximum): the sweep
+runs on such a cover only over wheel positions where that cell cannot carry the wheel
+(:mod:`sim_core.constraint.cosine_hybrid`; the ψ-search takes the others).
 y_C^k(x) is the maximum over the pieces; the winner is a *feature*:
 
 - ``2g``: the interior of piece g (the contact point slides along it; slope by the
