@@ -76,7 +76,15 @@ def flat_window(phase: float, half: float) -> tuple[float, float]:
 def test_rounded_flat_on_cosine_against_general_and_brute_force(case: str, phase: float) -> None:
     rail, wheel = CASES[case]
     assert supports(wheel, rail)
-    lo, hi = flat_window(phase, 0.06)
+    check_flat_window(wheel, rail, phase, flat_window(phase, 0.06))
+
+
+def check_flat_window(
+    wheel: WheelOutline, rail: RailProfile, phase: float, window: tuple[float, float]
+) -> None:
+    """The table (auto) on a window where the flat carries the wheel against the ψ-search's
+    and brute force (module docstring)."""
+    lo, hi = window
     fast = tabulate_constraint(wheel, rail, lo, hi, phase=phase)
     gen = tabulate_constraint(wheel, rail, lo, hi, phase=phase, method="general")
     xq = np.random.default_rng(17).uniform(lo, hi, 20000)

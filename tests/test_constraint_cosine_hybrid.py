@@ -22,8 +22,7 @@ from sim_core.constraint.cosine_cells import UNCERTIFIED, cell_cover, uncertifie
 from sim_core.constraint.cosine_hybrid import contact_windows, supports_cosine_hybrid
 from sim_core.constraint.wheel_pieces import cosine_cover, supports, wheel_pieces
 from sim_core.rail import RailProfile
-from tests.test_constraint_cosine_cells import brute, flat_window, site_flat
-from tests.test_constraint_flat_cosine import check_window
+from tests.test_constraint_cosine_cells import check_flat_window, flat_window, site_flat
 
 R = 0.46
 PAPER = RailProfile.cosine(1e-4, 0.05)
@@ -43,16 +42,7 @@ def test_hybrid_against_general_and_brute_force(case: str, phase: float) -> None
     # the stretch holds one window with swept stretches on both sides
     wins = contact_windows(wheel, rail, phase, lo, hi)
     assert len(wins) == 1 and lo + 0.01 < wins[0][0] < wins[0][1] < hi - 0.01
-    fast = tabulate_constraint(wheel, rail, lo, hi, phase=phase)
-    gen = tabulate_constraint(wheel, rail, lo, hi, phase=phase, method="general")
-    xq = np.random.default_rng(23).uniform(lo, hi, 20000)
-    diff = np.abs(fast.evaluate(xq) - gen.evaluate(xq))
-    assert np.quantile(diff, 0.999) < 1e-12 and diff.max() < 1e-11
-    pts = np.concatenate((xq[np.argsort(diff)[-6:]], xq[:10]))
-    assert np.abs(brute(wheel, rail, pts, phase) - fast.evaluate(pts)).max() < 1e-12
-    # the flat carries the wheel
-    assert fast.y.min() < -abs(rail.amplitude) - 0.1 * wheel.flat_depth
-    check_window(fast, gen, wheel, rail, (lo, hi), phase, xq[:200], 0.3 * wheel.flat_length)
+    check_flat_window(wheel, rail, phase, (lo, hi))
 
 
 def test_hybrid_over_a_passage() -> None:

@@ -7,31 +7,35 @@ uncertified cells cannot carry the wheel, the ψ-search only where they can.
 
 on most cells of a wheel's pieces for every wheel position; some (the middle of a rounded flat
 whose hollow is curved less than the rail's crests) it cannot, and there G really has several
-local maxima: the hollow bridges crests. A wheel point at angle ψ from the bottom carries the
-wheel only if |ψ| ≤ ψ_max (:func:`~sim_core.constraint.cosine_cells.contact_angle_bound`), so
-an uncertified cell [u0, u1] of wheel angle can reach the contact only while
+local maxima: the hollow bridges crests. A span [u0, u1] of such cells (wheel angle) can
+carry the wheel only while a point of it is within ψ_max of the bottom
+(:func:`~sim_core.constraint.cosine_cells.contact_angle_bound`), φ ∈ [u0 - ψ_max, u1 + ψ_max]
+(mod 2π), and only where the most it can lift the centre,
 
-    φ ∈ [u0 - ψ_max, u1 + ψ_max]  (mod 2π),
+    |a| + max(r - R)·cos ψ - 2R sin²(ψ/2)   (ψ: the least |ψ| of its points),
 
-a *window* of R(u1 - u0 + 2ψ_max) of wheel travel per turn. Outside the windows every cell
-the sweep meets within |ψ| ≤ ψ_max is certified, and the sweep
-(:mod:`sim_core.constraint.wheel_pieces`) is exact there; inside, the general ψ-search
-(:mod:`sim_core.constraint.general`) tabulates the window, with its own kinks (contact jumps
-between the hollow's local maxima and the certified cells' maxima, located by bisection to
-~1e-13 m). The stretches share their end nodes: the value there is exact from both sides,
-the left slope is the left stretch's, the right slope the right one's (a kink if they differ).
+reaches the least the wheel point under the centre (ψ = 0) gives, -|a| + r(φ) - R, with the
+exact ranges of r over slices of φ (:func:`_angle_windows`). These φ are the *windows*.
+Outside them the sweep (:mod:`sim_core.constraint.wheel_pieces`) is exact: every cell that
+can win is certified, and an uncertified one only contributes its ends, values of G that
+cannot win. Inside, the general ψ-search (:mod:`sim_core.constraint.general`) tabulates,
+with its own kinks (contact jumps between the hollow's local maxima and the certified
+cells' maxima, located by bisection to ~1e-13 m). The stretches share their end nodes: the
+value there is exact from both sides, the left slope is the left stretch's, the right slope
+the right one's (a kink if they differ).
 
 Worked example: the 80 mm, l²/16R-deep haversine flat (R = 0.46 m, depth 0.87 mm) on the
-paper's cosine a = 0.1 mm, λ = 5 cm: its middle ±0.035 rad is not certified, ψ_max is
-0.069 rad, so the window is 0.096 m of each 2.89 m turn; over a 6 m passage the ψ-search
-tabulates 3 windows (about 0.2 m), the sweep the rest:
+paper's cosine a = 0.1 mm, λ = 5 cm: its middle ±0.035 rad is not certified; ψ_max (0.069
+rad) alone would give windows of 0.208 rad, the lift bound gives ±0.046 rad, 43 mm of each
+2.89 m turn. Over a 6 m passage from φ0 = 0 the ψ-search tabulates 3 windows (the first cut
+by the start), about 0.1 m, the sweep the rest:
 
     >>> from sim_core.rail import RailProfile
     >>> from sim_core.wheel import WheelOutline
     >>> w = WheelOutline.rounded_flat(0.46, 0.08, 0.08**2 / (16 * 0.46))
     >>> wins = contact_windows(w, RailProfile.cosine(1e-4, 0.05), 0.0, 0.0, 6.0)
     >>> [round(float(b - a), 4) for a, b in wins]
-    [0.0483, 0.0966, 0.0966]
+    [0.0213, 0.0426, 0.0426]
 """
 
 from __future__ import annotations
