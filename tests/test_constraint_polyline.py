@@ -254,3 +254,20 @@ def test_flat_wheel_on_a_dented_step_rail(kind: str) -> None:
         t = tabulate_constraint(wheel, rail, -0.03, 0.03, phase=phase)
         assert t.x.size < 5000
         assert np.abs(reference(wheel, rail, xq, phase) - t.evaluate(xq)).max() < 1e-11
+
+
+def test_general_search_on_a_dented_step_rail() -> None:
+    """The ψ-search's grid also leaves a dented step's 1e-12 m riser aside (it takes rail
+    vertices exactly, so the riser's corners are still found): it used to lay a grid of the
+    riser's width and ran for minutes. Its table holds the brute-force values and the fast
+    sweep's."""
+    wheel = WHEELS["rounded_flat"]()
+    xd = np.linspace(-0.05, 0.05, 201)
+    depth = 3e-5 * np.exp(-(((xd - 0.01) / 0.004) ** 2))
+    rail = dented_rail(RailProfile.step(1e-4, 0.0), xd, depth, -0.2, 0.2)
+    rng = np.random.default_rng(6)
+    xq = np.sort(np.concatenate((rng.uniform(-0.01, 0.01, 20), rng.uniform(-2e-4, 2e-4, 10))))
+    general = tabulate_constraint(wheel, rail, -0.01, 0.01, method="general")
+    fast = tabulate_constraint(wheel, rail, -0.01, 0.01)
+    assert np.abs(reference(wheel, rail, xq, 0.0) - general.evaluate(xq)).max() < 1e-11
+    assert np.abs(fast.evaluate(xq) - general.evaluate(xq)).max() < 1e-11

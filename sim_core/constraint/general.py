@@ -51,6 +51,7 @@ from sim_core.constraint.nodes import (
     interval_stack,
     next_interval,
     push,
+    rail_feature_length,
     split,
     stretch,
     table_from_nodes,
@@ -587,7 +588,7 @@ def _general_args(
 
 def _dpsi(wheel: WheelOutline, rail: RailProfile) -> float:
     R = wheel.nominal_radius
-    feat = min(rail.min_feature_length, wheel.min_feature_length)
+    feat = min(rail_feature_length(rail), wheel.min_feature_length)
     if wheel.kind == "ideal_flat":
         feat = min(feat, wheel.flat_length / 16.0)
     return min(0.25 * feat / R, 0.01)

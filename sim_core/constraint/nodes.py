@@ -160,11 +160,16 @@ def resolution(wheel: WheelOutline, rail: RailProfile) -> float:
     A dented 0.1 mm step rail sampled every 0.5 mm has the resolution of a 0.5 mm sampling,
     as its step rail has the wheel's (a resolution of its 1e-12 m riser made tabulation
     grids of 1e11 intervals: out of memory or >600 s)."""
+    return min(rail_feature_length(rail), wheel.min_feature_length, MAX_RESOLUTION)
+
+
+def rail_feature_length(rail: RailProfile) -> float:
+    """The rail's finest feature (m), a step's riser (segments under :data:`RISER`) aside."""
     feature = rail.min_feature_length
     if rail.kind == "sampled" and feature < RISER:
         dx = np.diff(rail.x)
         feature = float(dx[dx >= RISER].min(initial=math.inf))
-    return min(feature, wheel.min_feature_length, MAX_RESOLUTION)
+    return feature
 
 
 def stretch(a: float, b: float, step: float, period: float) -> tuple[float, float, int]:
