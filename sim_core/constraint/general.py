@@ -48,6 +48,7 @@ from sim_core.constraint.nodes import (
     V,
     X,
     grow,
+    hermite_midpoint,
     interval_stack,
     next_interval,
     push,
@@ -537,7 +538,7 @@ def _tabulate_general(
         elif h > 4.0 * eps:
             m = 0.5 * (xa + xb)
             vm, _, _ = _solve_t(m, args)
-            hm = 0.5 * (nodes[ia, V] + nodes[ib, V]) + 0.125 * h * (nodes[ia, SR] - nodes[ib, SL])
+            hm, _ = hermite_midpoint(nodes, ia, ib, h)
             if abs(vm - hm) > HERMITE_TOL:
                 k = _make_node(m, False, args, row, row2)
                 have = True

@@ -61,10 +61,10 @@ from sim_core.constraint.nodes import (
     SR,
     XD,
     K,
-    V,
     X,
     add_node,
     grow,
+    hermite_midpoint,
     interval_stack,
     next_interval,
     push,
@@ -1244,9 +1244,7 @@ def sweep_kernel(
                 continue
         vg, tg, gg, rg, sg, xdg, g0 = _global(pl, ymax, drg, phase, xn, hint, tA, gA, rA)
         if not plain:
-            hm = 0.5 * (nodes[ia, V] + nodes[ib, V]) + 0.125 * hlen * (
-                nodes[ia, SR] - nodes[ib, SL]
-            )
+            hm, _ = hermite_midpoint(nodes, ia, ib, hlen)
             if abs(vg - hm) <= hermite_tol:
                 if tg == tA and gg == gA and rg == rA:
                     continue

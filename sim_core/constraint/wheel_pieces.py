@@ -76,10 +76,10 @@ from sim_core.constraint.nodes import (
     SR,
     XD,
     K,
-    V,
     X,
     add_node,
     grow,
+    hermite_midpoint,
     interval_stack,
     next_interval,
     push,
@@ -957,10 +957,9 @@ def tabulate_pieces_kernel(
         elif h > 4.0 * 4e-13 * scale:
             m = 0.5 * (xa + xb)
             vg, fg, sg, xdg, g0 = _global(pc, phase, drg, m, hint)
-            hm = 0.5 * (nodes[ia, V] + nodes[ib, V]) + 0.125 * h * (nodes[ia, SR] - nodes[ib, SL])
             # the Hermite slope at m too: an error odd about m (the contact sliding fast near a
             # nearly conforming trough) is 0 there in value, but ~h/8 times its slope miss beside
-            dm = 1.5 * (nodes[ib, V] - nodes[ia, V]) / h - 0.25 * (nodes[ia, SR] + nodes[ib, SL])
+            hm, dm = hermite_midpoint(nodes, ia, ib, h)
             if fg != fA or abs(vg - hm) > hermite_tol or 0.125 * h * abs(sg - dm) > hermite_tol:
                 xn, vn, sl, sr, xdn, fl, fr, hint = m, vg, sg, sg, xdg, fg, fg, g0
             else:
