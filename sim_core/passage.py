@@ -326,11 +326,7 @@ def simulate_passage(
     n_samples = math.floor(spec.duration * spec.sample_rate * (1 + 1e-12)) + 1
     # the last sample may round past t1 by an ulp: it is t1 (else the integrator, which stops
     # at t1, would leave it unfilled as a row of zeros)
-    # (in place: three passes over one array; the same operations as t0 + i/rate, min t1)
-    sample_t = np.arange(n_samples, dtype=np.float64)
-    sample_t /= spec.sample_rate
-    sample_t += t0
-    np.minimum(sample_t, t1, out=sample_t)
+    sample_t = np.minimum(t0 + np.arange(n_samples) / spec.sample_rate, t1)
     kinks = table.kinks_between(v * t0 - 1e-12, v * t1 + table.resolution)
     res = integrate(
         tab,
