@@ -37,9 +37,9 @@ def main(argv: list[str] | None = None) -> int:
     site = load_site(args.site)
     endpoint = free_tcp_endpoint()
     print(f"demo: starting railtwin serve for site {site.site_id!r} on {endpoint} "
-          "(the first start compiles the physics: allow a minute)", flush=True)
+          "(the first start compiles the physics: allow a few minutes; up to 15 are waited for)", flush=True)
     with tempfile.TemporaryDirectory(prefix="railtwin-demo-state-") as state, ServiceProcess(
-        args.site, listen=endpoint, recordings=args.recordings, start_timeout=300.0,
+        args.site, listen=endpoint, recordings=args.recordings, start_timeout=900.0,
         extra_args=("--state", state),
     ) as svc:
         saved = args.recordings / "demo-measured.json"

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import contextlib
 import multiprocessing
+import os
 import queue
 import signal
 import threading
@@ -34,6 +35,7 @@ from schemas.diagnosis import Diagnosis, MeasuredPassage
 from schemas.messages import PassageResult, PassageSeries, RailState, WheelPassage
 from schemas.site import SiteConfig
 from service.measurement_error import MeasurementError
+from service.parent_watch import exit_when_orphaned
 from service.rail_store import RailStore
 from sim_core.rail import RailProfile
 
@@ -113,8 +115,10 @@ def diagnose_locally(diagnoser: Any, passage: WheelPassage,
 # --- the child ---------------------------------------------------------------------------------
 
 
-def _child_main(site: SiteConfig, kind: str, conn: Connection, snapshot: Any) -> None:
+def _child_main(site: SiteConfig, kind: str, conn: Connection, snapshot: Any,
+                parent_pid: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the service stops us, not the terminal
+    exit_when_orphaned(parent_pid)  # even while compiling, when the pipe is not read
     from pydantic import ValidationError
 
     physics = make_physics(kind, site)
@@ -223,7 +227,8 @@ class ProcessPhysics:
     def _spawn(self) -> None:
         parent, child = self._ctx.Pipe()
         proc = self._ctx.Process(target=_child_main, name="railtwin-physics",
-                                 args=(self.site, self.kind, child, self._snapshot), daemon=True)
+                                 args=(self.site, self.kind, child, self._snapshot, os.getpid()),
+                                 daemon=True)
         proc.start()
         child.close()
         self._proc, self._conn = proc, parent
