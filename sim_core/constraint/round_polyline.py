@@ -5,7 +5,9 @@ The constraint is the upper envelope of one circular arc per rail vertex
 tangent to the segment: y_i + s(x - x_i) + R(sqrt(1+s²) - 1)). Nodes hold the active piece;
 every change of piece between two nodes is inserted as a node: tangent junctions (segment →
 its end vertex → next segment) in closed form, crossings of non-adjacent pieces (kinks) by
-bisection to the last bit. So the table is exact piecewise (arcs and lines).
+bisection to the last bit. So the table is exact piecewise (arcs and lines): the nodes hold
+exact values and slopes, and no refinement is needed between them (a line's Hermite is
+exact, an arc's within h⁴/(128R³): 5e-15 m for h = 0.5 mm and R = 0.46 m).
 
 The round wheel's table of a whole sampled rail is wheel-independent: it is made once per
 rail and radius (:func:`round_nodes`, cached) and the out-of-round wheels of
