@@ -23,8 +23,6 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from sim_core.integrate_types import kernel
-
 # c_0..c_3 come from the start; c_4..c_7 = _SEPTIC_INV · (the end conditions' residuals).
 _SEPTIC_INV = np.linalg.inv(
     np.array(
@@ -75,7 +73,7 @@ def _septic_fill(
         )
 
 
-@kernel
+@numba.njit(cache=True, inline="always")
 def fill_dense(
     coef: NDArray[np.float64],
     h: float,
@@ -88,7 +86,10 @@ def fill_dense(
     j1c: float,
     j1m: float,
 ) -> None:
-    """Coefficients of the step's dense output; k0/k1 are (v_C, a_C, v_M, a_M) at the ends."""
+    """Coefficients of the step's dense output; k0/k1 are (v_C, a_C, v_M, a_M) at the ends.
+
+    Inlined: ~30 floating-point operations a row, less than the cost of a call.
+    """
     _septic_fill(coef, 0, h, y0[0], y0[1], k0[1], j0c, y1[0], y1[1], k1[1], j1c)
     _septic_fill(coef, 1, h, y0[2], y0[3], k0[3], j0m, y1[2], y1[3], k1[3], j1m)
 

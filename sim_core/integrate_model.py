@@ -115,8 +115,8 @@ def rhs(
     return ac, am, delta, hint
 
 
-@kernel
-def jerks(
+@numba.njit(cache=True, inline="always")
+def jerks_and_delta(
     t: float,
     y: NDArray[np.float64],
     am: float,
@@ -125,15 +125,22 @@ def jerks(
     tab: Table,
     hint: int,
     left: bool,
-) -> tuple[float, float, int]:
-    """(dä_C/dt, dä_M/dt, hint) in ``mode``: F'(δ)·dδ/dt through the masses.
+) -> tuple[float, float, float, float, int]:
+    """(dä_C/dt, dä_M/dt, δ, dδ/dt, hint) in ``mode``: the jerks are F'(δ)·dδ/dt through the masses.
 
     ``left``: take the constraint's slope just before t (a step ending on a kink).
+    δ and dδ/dt (0 in flight) come from the same look-up: at a step's end they are
+    what ``integrate_records.step_extrema`` folds, so it need not look the end up again.
 
     (A curvature-dependent C(x) adds C'(x)·V·δ^(3/2), neglected here: it only
     touches the interpolation between step ends, not the steps.)
+
+    Inlined (as is ``jerks``): a call would copy the ~65 words of ``Params`` and
+    ``Table`` for a look-up and a square root (measured on the site passage:
+    ~47 ns a step as a separate function).
     """
     dfdd = 0.0
+    delta = 0.0
     rate = 0.0
     if mode != FLIGHT:
         ck, dck, hint = slope_at(tab, before(par.speed * t, left), hint)
@@ -144,6 +151,22 @@ def jerks(
     jm = 0.0
     if par.compliant:
         jm = (-dfdd * rate - par.f_stiff * y[3] - par.f_damp * am) / par.f_mass
+    return jc, jm, delta, rate, hint
+
+
+@numba.njit(cache=True, inline="always")
+def jerks(
+    t: float,
+    y: NDArray[np.float64],
+    am: float,
+    mode: int,
+    par: Params,
+    tab: Table,
+    hint: int,
+    left: bool,
+) -> tuple[float, float, int]:
+    """(dä_C/dt, dä_M/dt, hint) in ``mode``: ``jerks_and_delta`` without δ and its rate."""
+    jc, jm, _, _, hint = jerks_and_delta(t, y, am, mode, par, tab, hint, left)
     return jc, jm, hint
 
 

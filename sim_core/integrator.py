@@ -51,6 +51,7 @@ from sim_core.integrate_model import (
     constraint_at,
     delta_rate,
     jerks,
+    jerks_and_delta,
     loading_force,
     mode_of,
     rhs,
@@ -476,7 +477,9 @@ def _run(
         if n_rej > 0:
             hit_kink = False
             factor = min(1.0, factor)
-        j1c, j1m, hint = jerks(t + h, ynew, K[12, 3], mode, par, tab, hint, True)
+        j1c, j1m, d_1, r_1, hint = jerks_and_delta(
+            t + h, ynew, K[12, 3], mode, par, tab, hint, True
+        )
         fill_dense(coef, h, y, K[0], j0c, j0m, ynew, K[12], j1c, j1m)
         # --- events: detect, locate, and redo the step so that it ends on the first
         if mode == FLIGHT:
@@ -491,7 +494,9 @@ def _run(
                 # K[0] is the same start: the redone stages overwrite the rest
                 _, hint = rk_step(t, y, hstep, mode, w, par, tab, hint)
                 nrhs += 12
-                j1c, j1m, hint = jerks(t + hstep, ynew, K[12, 3], mode, par, tab, hint, True)
+                j1c, j1m, d_1, r_1, hint = jerks_and_delta(
+                    t + hstep, ynew, K[12, 3], mode, par, tab, hint, True
+                )
                 fill_dense(coef, hstep, y, K[0], j0c, j0m, ynew, K[12], j1c, j1m)
             else:
                 hstep = 0.0
@@ -508,7 +513,9 @@ def _run(
         if mode == FLIGHT:
             ext[X_T_FLIGHT] += hstep
         elif hstep > 0.0:
-            d_b, r_b, c_b, hint = step_extrema(ext, mode, t, hstep, y, ynew, coef, par, tab, hint)
+            d_b, r_b, c_b, hint = step_extrema(
+                ext, mode, t, hstep, y, d_1, r_1, coef, par, tab, hint
+            )
             if mode == PLASTIC and par.track_dents:
                 n_dent, hint = record_dents(dents, n_dent, t, hstep, coef, par, tab, hint)
         # --- advance
