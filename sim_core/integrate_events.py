@@ -69,7 +69,7 @@ def event_value(kind: int, d: float, par: Params) -> float:
     return par.d_y - par.hyst - d
 
 
-@kernel
+@numba.njit(cache=True, inline="always")
 def value_at(
     kind: int,
     s: float,
@@ -80,7 +80,11 @@ def value_at(
     tab: Table,
     hint: int,
 ) -> tuple[float, int]:
-    """Function ``kind`` (an event code, ``F_RATE`` or ``F_FORCE_RATE``) at fraction s of the step."""
+    """Function ``kind`` (an event code, ``F_RATE`` or ``F_FORCE_RATE``) at fraction s of the step.
+
+    Inlined into the scans and the root finder, which call it in loops: a call would copy
+    ``Params`` and ``Table`` (~65 words) for a dense evaluation and a look-up.
+    """
     if kind == F_FORCE_RATE:
         _, q, hint = force_rate(s, t, h, coef, par, tab, False, hint)
         return q, hint

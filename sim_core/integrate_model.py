@@ -21,7 +21,7 @@ from numpy.typing import NDArray
 
 from sim_core.constraint.table import linear_at, table_eval
 from sim_core.contact_laws import HERTZ, contact_force, mode_force, mode_stiffness
-from sim_core.integrate_dense import dense
+from sim_core.integrate_dense import dense_state
 from sim_core.integrate_types import ELASTIC, FLIGHT, PLASTIC, Params, Table, kernel
 
 
@@ -175,7 +175,7 @@ def delta_rate(
     s: float, t: float, h: float, coef: NDArray[np.float64], par: Params, tab: Table, hint: int
 ) -> tuple[float, float, int]:
     """(δ, dδ/dt, hint) at fraction s of the step [t, t + h] with dense coefficients ``coef``."""
-    yc, vc, ym, vm = dense(s, h, coef)
+    yc, vc, ym, vm = dense_state(s, h, coef, par.compliant)
     ck, dck, hint = slope_at(tab, par.speed * (t + s * h), hint)
     return -yc + ck + ym, -vc + par.speed * dck + vm, hint
 
@@ -198,7 +198,7 @@ def force_rate(
     nodes; a sign change of q across a node is a kink extremum of F there.
     ``left``: read slopes just before the position (a step ending on a kink).
     """
-    yc, vc, ym, vm = dense(s, h, coef)
+    yc, vc, ym, vm = dense_state(s, h, coef, par.compliant)
     v = par.speed
     xv = before(v * (t + s * h), left)
     ck, dck, hint = slope_at(tab, xv, hint)

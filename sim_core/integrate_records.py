@@ -28,7 +28,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sim_core.constraint.table import linear_at
-from sim_core.integrate_dense import dense
+from sim_core.integrate_dense import dense_state
 from sim_core.integrate_events import extremum_in
 from sim_core.integrate_model import (
     constraint_at,
@@ -164,7 +164,7 @@ def write_samples(
     while si < sample_t.size and sample_t[si] <= tn:
         ts = sample_t[si]
         s = (ts - t) / h if h > 0.0 else 0.0
-        yc, vc, ym, vm = dense(s, h, coef)
+        yc, vc, ym, vm = dense_state(s, h, coef, par.compliant)
         ck, _, sc, hint = constraint_at(tab, v * ts, hint)
         d = -yc + ck + ym
         _write_row(samples, si, ts, v * ts, yc, vc, ym, vm, ck, d, force(d, mode, par, sc), mode)
