@@ -6,7 +6,9 @@ off the step ends alone:
 - samples at the requested output times (``write_samples``);
 - extrema of δ and F in contact (``step_extrema``): at the step ends and where
   dδ/dt — or, with a curvature-dependent C(x), the rate of C(x)·δ^(3/2) —
-  changes sign inside the step;
+  changes sign inside the step; an interior extremum of δ is located only when
+  a certified bound (``interior_reach``, from |δ''| over the step,
+  ``curvature_of_delta``) says it can beat a record;
 - the indentation at the contact point every ``dent_dx`` of travel while the
   contact is plastic (``record_dents``), the input of ``sim_core.dents``;
 - the located transitions (``push_row``).
