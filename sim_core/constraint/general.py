@@ -354,7 +354,45 @@ def _solve(
             g, xd = _objective(x, p, phi, sc)
         if g > best_g:
             best_g, best_p, best_x = g, p, xd
+    if int(wp[0]) == WHEEL_IDEAL_FLAT:
+        p, g, xd = _flat_corners(x, psimax, h, phi, best_g, sc)
+        if g > best_g:
+            best_g, best_p, best_x = g, p, xd
     return best_g, best_p, best_x
+
+
+@numba.njit(cache=True)
+def _flat_corners(
+    x: float, psimax: float, h: float, phi: float, best: float, sc: SearchCase
+) -> tuple[float, float, float]:
+    """(ψ, G, x_D) of the best maximum next to an ideal flat's corners in the window ±psimax
+    that beats ``best`` (G = -inf if none does).
+
+    The grid cannot see a corner's maximum when a rail vertex lies less than a grid step
+    beside it on the flat: G falls from the corner to the vertex and rises again to the
+    next vertex, so the grid shows one slope and the corner lies outside every refined
+    window. Each corner is therefore evaluated exactly, and refined (±2 grid steps, split
+    at the corner and the rail vertices there) when it beats the grid's best. Example:
+    a 50 mm flat on a rough rail sampled every 0.5 mm at x = 0.0197185 m, its corner
+    0.4 µm left of the vertex at x_D = -5 mm: the search took the next vertex instead,
+    7.6e-11 m too low, over 70 nm of x.
+    """
+    wp = sc.wp
+    best_g = -np.inf
+    best_p = 0.0
+    best_x = x
+    for sgn in (-1.0, 1.0):
+        t = sgn * wp[2] - phi
+        t -= TWO_PI * math.floor((t + math.pi) / TWO_PI)
+        if not (-psimax < t < psimax):
+            continue
+        g, _ = _objective(x, t, phi, sc)
+        if g <= best:
+            continue
+        p, g, xd = _refine(x, max(t - 2.0 * h, -psimax), min(t + 2.0 * h, psimax), phi, sc)
+        if g > best_g:
+            best_g, best_p, best_x = g, p, xd
+    return best_p, best_g, best_x
 
 
 @numba.njit(cache=True)
