@@ -4,10 +4,15 @@ The ψ-search refines an interval until its cubic Hermite matches the exact solv
 midpoint, in value and in slope. A value-only check misses an error odd about the midpoint:
 on a rounded flat over a rough sampled rail it left 2.4e-12 m at an interval's quarter
 points, 24 times the table's tolerance (HERMITE_TOL = 1e-13 m). Here every interval the
-refinement checks (longer than 4 · SLOPE_STEP) holds the exact solve within 2e-13 m at 7
-interior points, and the worst of them hold the brute-force maximum over ψ. The same holds
-for the cosine hybrid, whose flat windows the ψ-search tabulates (a short cosine: 6.6e-13 m
-there with the value-only check).
+refinement leaves holds the exact solve within 2e-13 m at 7 interior points, and the worst of
+them hold the brute-force maximum over ψ. The same holds for the cosine hybrid, whose flat
+windows the ψ-search tabulates (a short cosine: 6.6e-13 m there with the value-only check).
+
+An ideal flat's corner 0.4 µm beside a rail vertex is a maximum the ψ grid cannot see: the
+solve took the next vertex instead, 7.6e-11 m too low over 70 nm of x at x = 0.0197185, and
+the table showed two 'kinks' 6 pm apart and 5.0e-11 m in the 20 nm interval after them. The
+corners are now evaluated exactly; the solve there is the brute-force maximum, and the table's
+kink is where the polyline sweep puts it.
 """
 
 from __future__ import annotations
@@ -18,7 +23,7 @@ from numpy.typing import NDArray
 
 from sim_core.constraint import evaluate_exact, tabulate_constraint
 from sim_core.constraint.cosine_hybrid import supports_cosine_hybrid
-from sim_core.constraint.general import SLOPE_STEP
+from sim_core.constraint.polyline import supports_polyline
 from sim_core.rail import RailProfile
 from sim_core.wheel import WheelOutline
 from tests.test_constraint_cosine_cells import brute
@@ -62,10 +67,9 @@ HYBRID = {
 
 
 def interior(x: NDArray[np.float64], lo: float, hi: float) -> NDArray[np.float64]:
-    """7 points inside each interval of the nodes ``x`` in [lo, hi] that the refinement checks
-    (longer than 4 · SLOPE_STEP), one row per interval."""
+    """7 points inside each interval of the nodes ``x`` in [lo, hi], one row per interval."""
     a, b = x[:-1], x[1:]
-    keep = (a >= lo) & (b <= hi) & (b - a > 4.0 * SLOPE_STEP)
+    keep = (a >= lo) & (b <= hi)
     a, b = a[keep], b[keep]
     return a[:, None] + (b - a)[:, None] * (np.arange(1, 8) / 8.0)[None, :]
 
@@ -92,3 +96,21 @@ def test_general_table_between_nodes(case: str, method: str) -> None:
         else brute(wheel, rail, worst, phase)
     )
     assert np.abs(ref - t.evaluate(worst)).max() < 1e-12
+
+
+def test_flat_corner_beside_a_rail_vertex() -> None:
+    """The 50 mm flat's trailing corner at x_D = -5.0004 mm, 0.4 µm left of a rail vertex,
+    carries the wheel up to x = 0.01971856 m, where the vertex at x_D = -4.5 mm takes over."""
+    wheel, rail, (lo, hi), phase = CASES["ideal flat 50 mm, rough rail"]
+    x = np.linspace(0.0197184, 0.0197187, 61)
+    exact, xd = evaluate_exact(wheel, rail, x, phase=phase)
+    assert np.abs(exact - reference(wheel, rail, x, phase)).max() < 1e-15
+    on_corner = np.abs(xd + 5.0004e-3) < 1e-7
+    assert on_corner[:30].all() and not on_corner[-10:].any()
+    general = tabulate_constraint(wheel, rail, lo, hi, phase=phase, method="general")
+    assert supports_polyline(wheel, rail) and not supports_cosine_hybrid(wheel, rail)
+    sweep = tabulate_constraint(wheel, rail, 0.015, 0.025, phase=phase)  # the polyline sweep
+    near = general.kinks[np.abs(general.kinks - 0.0197185) < 1e-6]
+    swept = sweep.kinks[np.abs(sweep.kinks - 0.0197185) < 1e-6]
+    assert near.size == 1 and swept.size == 1
+    assert abs(near[0] - swept[0]) < 1e-12
