@@ -9,7 +9,8 @@ window bounded by the height range (a wheel point at ψ can only win if
 ``rail max + wheel bulge - 2R·sin²(ψ/2)`` reaches the value at ψ = 0), then golden-section
 refinement of the best grid maxima on the continuous interpolated objective, split at
 every corner of either outline (rail vertices, wheel samples, a flat's ends), whose values
-are taken exactly. Slopes are central differences (±1e-8 m) of these re-optimised values.
+are taken exactly. An ideal flat's two corners are also evaluated exactly at every x (the
+grid cannot see a corner's maximum beside a close rail vertex, see :func:`_flat_corners`). Slopes are central differences (±1e-8 m) of these re-optimised values.
 Kinks are found from jumps of the contact angle ψ between nodes and located by bisection
 to ~1e-13 m; an interval is split at its midpoint unless the cubic Hermite matches the
 exact value there to 1e-13 m and the exact slope to 8e-13/h (this resolves C² breaks such as
