@@ -277,12 +277,14 @@ def detect_in_flight(
 
 @numba.njit(cache=True, inline="always")
 def detect_in_contact(
-    mode: int, t: float, h: float, w: Work, par: Params, tab: Table, hint: int
+    mode: int, t: float, h: float, w: Work, par: Params, tab: Table, gap: float, hint: int
 ) -> tuple[float, int, int]:
     """(fraction, event code or ``NO_EVENT``, hint): the first switch in a contact step.
 
     Elastic: loss of contact, or yield for a plastic law; plastic: unyield. A
-    loss where δ does not fall (a grazing touch of 0) is not an event.
+    loss where δ does not fall (a grazing touch of 0) is not an event. ``gap``: the
+    largest gap between the stage times of the pair that took the step (``STAGE_GAP``
+    for DOP853, ``dopri5.STAGE_GAP`` for the short step), as a fraction of it.
     """
     K = w.K
     coef = w.coef
@@ -300,8 +302,8 @@ def detect_in_contact(
     # Between the stage times δ can leave the range of the stage values by at most
     # |δ''|max·gap²/8: scan only if that reaches a threshold.
     v = par.speed
-    gap = STAGE_GAP * h
-    slack = 1.5 * (amax_c + amax_m + v * v * par.c2max) * gap * gap / 8.0
+    span = gap * h
+    slack = 1.5 * (amax_c + amax_m + v * v * par.c2max) * span * span / 8.0
     ev_s = -1.0
     ev_kind = NO_EVENT
     if mode == ELASTIC:

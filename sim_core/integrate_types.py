@@ -233,10 +233,16 @@ class LoopState(NamedTuple):
 
     t: float
     h: float
-    """The next step's size."""
+    """The next step's size: DOP853's proposal, capped on the approach of a loss."""
+    h_control: float
+    """DOP853's proposal itself (a step cut below it may take the short pair)."""
+    h_short: float
+    """The longest step the short pair (DOPRI5) is trusted with, from its last error."""
     mode: int
     kp: int
     """The next kink's index."""
+    jp: int
+    """The next curvature jump's index."""
     si: int
     """The next sample's index."""
     hint: int

@@ -44,9 +44,9 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from sim_core import dop853
+from sim_core import dop853, dopri5
 from sim_core.integrate_dense import fill_dense
-from sim_core.integrate_events import detect_in_contact, detect_in_flight
+from sim_core.integrate_events import STAGE_GAP, detect_in_contact, detect_in_flight
 from sim_core.integrate_model import (
     constraint_at,
     delta_rate,
@@ -123,11 +123,24 @@ SINGULAR_STEP = 0.004
 """A step touching δ = 0 (the first after a landing, the last before a loss), as a
 fraction of the Hertz impact duration, at rtol = 1e-9."""
 
+JUMP_STRADDLE = 0.0016
+"""The velocity error of a step of length h over a jump J of the acceleration's second
+derivative, as a multiple of J·h³: the largest over the jump's place in the step of
+|Σ b_i·(c_i - s)₊²/2 - (1 - s)³/6|, 0.00160 for DOP853's weights, 0.00114 for DOPRI5's."""
+
+JUMP_SHARE = 0.1
+"""A curvature jump may be stepped over if its error is at most this share of the
+tolerance: the error estimate does not see it, and several add up over a passage."""
+
 _A = dop853.A
 _B = dop853.B
 _C = dop853.C
 _E3 = dop853.E3
 _E5 = dop853.E5
+_A45 = dopri5.A
+_B45 = dopri5.B
+_C45 = dopri5.C
+_E45 = dopri5.E
 
 
 @numba.njit(cache=True, inline="always")
@@ -213,6 +226,130 @@ def rk_step(
     if par.compliant:
         return _dop853(t, y, h, mode, w, par, tab, hint, 4)
     return _dop853(t, y, h, mode, w, par, tab, hint, 2)
+
+
+@numba.njit(cache=True, inline="always")
+def _dopri5(
+    t: float,
+    y: NDArray[np.float64],
+    h: float,
+    mode: int,
+    w: Work,
+    par: Params,
+    tab: Table,
+    hint: int,
+    nc: int,
+) -> tuple[float, int]:
+    """``short_step`` for ``nc`` state components."""
+    K = w.K
+    tmp = w.tmp
+    ynew = w.ynew
+    dstage = w.dstage
+    for s in range(1, 6):
+        for j in range(nc):
+            acc = 0.0
+            for q in range(s):
+                acc += _A45[s, q] * K[q, j]
+            tmp[j] = y[j] + h * acc
+        ac, am, d, hint = rhs(t + _C45[s] * h, tmp[0], tmp[1], tmp[2], tmp[3], mode, par, tab, hint)
+        K[s, 0] = tmp[1]
+        K[s, 1] = ac
+        K[s, 2] = tmp[3]
+        K[s, 3] = am
+        dstage[s] = d
+    for j in range(nc):
+        acc = 0.0
+        for q in range(6):
+            acc += _B45[q] * K[q, j]
+        ynew[j] = y[j] + h * acc
+    for j in range(nc, 4):
+        ynew[j] = y[j]
+    ac, am, d, hint = rhs(t + h, ynew[0], ynew[1], ynew[2], ynew[3], mode, par, tab, hint)
+    K[12, 0] = ynew[1]
+    K[12, 1] = ac
+    K[12, 2] = ynew[3]
+    K[12, 3] = am
+    dstage[12] = d
+    # rows 6..11 repeat the end: the event scan takes extremes over rows 0..12
+    for q in range(6, 12):
+        for j in range(4):
+            K[q, j] = K[12, j]
+        dstage[q] = d
+    err = 0.0
+    for j in range(nc):
+        atol = par.atol_y if j % 2 == 0 else par.atol_v
+        sc = atol + par.rtol * max(abs(y[j]), abs(ynew[j]))
+        e = _E45[6] * K[12, j]
+        for q in range(6):
+            e += _E45[q] * K[q, j]
+        e /= sc
+        err += e * e
+    return abs(h) * math.sqrt(err / nc), hint
+
+
+@kernel
+def short_step(
+    t: float,
+    y: NDArray[np.float64],
+    h: float,
+    mode: int,
+    w: Work,
+    par: Params,
+    tab: Table,
+    hint: int,
+) -> tuple[float, int]:
+    """One Dormand–Prince 5(4) step (``sim_core.dopri5``): as ``rk_step``, at half its price.
+
+    Fills K[1..5] and K[12] (the end: FSAL) and ynew, repeats the end in rows 6..11
+    (so that the event scan's extremes over the rows stay those of the stages); returns
+    (its error norm, hint). For steps the breakpoints cut far below DOP853's proposal.
+    """
+    if par.compliant:
+        return _dopri5(t, y, h, mode, w, par, tab, hint, 4)
+    return _dopri5(t, y, h, mode, w, par, tab, hint, 2)
+
+
+@numba.njit(cache=True, inline="always")
+def jump_allowance(par: Params) -> float:
+    """The largest |ΔG''|·h³ (m²) a contact step may straddle (``JUMP_STRADDLE``, ``JUMP_SHARE``).
+
+    A jump ΔG'' of the constraint's curvature makes δ'' jump by V²·ΔG'' and the
+    acceleration's second derivative by ω²·V²·ΔG'' (ω² = F'(δ)/m); a step of length h
+    over it errs in velocity by ``JUMP_STRADDLE``·ω²·V²·ΔG''·h³, which the tolerance
+    (atol_v = ω·atol_y) must hold ``JUMP_SHARE`` times over. The paper's wheel at
+    160 km/h, rtol 1e-8 (atol_y = 5.1e-13 m, ω = 1700 /s): 9.5e-18 s³/m, so an arc's
+    end (ΔG'' = 2.17 /m) stops every step longer than 1.6 µs, a Hermite join on a
+    smooth cosine (ΔG'' ~ 1e-4 /m) none shorter than 46 µs.
+    """
+    omega = par.atol_v / par.atol_y
+    return JUMP_SHARE * par.atol_y / (JUMP_STRADDLE * omega * par.speed * par.speed)
+
+
+@numba.njit(cache=True, inline="always")
+def stop_on_jump(
+    jumps: NDArray[np.float64],
+    sizes: NDArray[np.float64],
+    jp: int,
+    t: float,
+    h: float,
+    v: float,
+    allowance: float,
+) -> tuple[float, int]:
+    """(h, index of the jump the step now ends on, or -1): the first curvature jump in
+    (t, t + h] that a step of length h may not straddle (``jump_allowance``) cuts it.
+
+    Shortening the step only lowers the error of the jumps before the cut, so one
+    pass in order is enough.
+    """
+    q = jp
+    while q < jumps.size:
+        dt = jumps[q] / v - t
+        if dt > h:
+            break
+        if sizes[q] * h * h * h > allowance:
+            return dt, q
+        q += 1
+    return h, -1
 
 
 @kernel
@@ -396,6 +533,8 @@ def _start_derivatives(
 def _run(
     tab: Table,
     kinks: NDArray[np.float64],
+    jumps: NDArray[np.float64],
+    jump_sizes: NDArray[np.float64],
     par: Params,
     t1: float,
     y: NDArray[np.float64],
@@ -419,8 +558,12 @@ def _run(
     coef = w.coef
     t = st.t
     h = st.h
+    h_control = st.h_control
     mode = st.mode
     kp = st.kp
+    jp = st.jp
+    h_short = st.h_short
+    allowance = jump_allowance(par)
     si = st.si
     hint = st.hint
     shint = st.sample_hint
@@ -437,7 +580,8 @@ def _run(
         if nsteps + nrej >= max_steps:
             status = TOO_MANY_STEPS
             break
-        # --- the step's size: to the end, the longest contact step or the next kink
+        # --- the step's size: to the end, the longest contact step, the next kink or
+        # the first curvature jump it may not straddle
         hmax = t1 - t
         if mode != FLIGHT:
             hmax = min(hmax, par.hmax_contact)
@@ -451,11 +595,20 @@ def _run(
             h = hmax
         else:
             hit_kink = False
+        jq = -1
+        if mode != FLIGHT and jp < jumps.size:
+            h, jq = stop_on_jump(jumps, jump_sizes, jp, t, h, v, allowance)
+            if jq >= 0:
+                hit_kink = False
         if h < H_MIN:
             if hit_kink:
                 # already on the kink (to round-off): pass it
                 kp += 1
                 h = max(h, 1e-9)
+                continue
+            if jq >= 0:
+                jp = jq + 1
+                h = max(h_control, 1e-9)
                 continue
             status = STEP_TOO_SMALL
             break
@@ -466,17 +619,34 @@ def _run(
         if mode == PLASTIC and par.track_dents and n_dent + dent_rows(h, par) > dents.shape[0]:
             why = LOOP_NEED_DENTS
             break
-        # --- the step
-        status, h, err, n_rej, hint = attempt_step(t, y, h, mode, w, par, tab, hint)
-        nrhs += 12 * (n_rej + 1)
-        nrej += n_rej
-        if status != OK:
-            break
+        # --- the step: the short pair if a breakpoint (or the approach of a loss) cut
+        # DOP853's proposal to a step within the short pair's reach; else DOP853
+        short = False
+        gap = STAGE_GAP
+        if mode != FLIGHT and h < h_control and h <= h_short:
+            err, hint = short_step(t, y, h, mode, w, par, tab, hint)
+            nrhs += 6
+            # its own proposal, not capped in growth: the breakpoints set the steps, and
+            # a step cut to a sliver between two of them must not bar the next one
+            h_short = h * max(MIN_FACTOR, SAFETY * err ** (-1.0 / 5.0)) if err > 0.0 else math.inf
+            if err <= 1.0:
+                short = True
+                gap = dopri5.STAGE_GAP
+            else:
+                nrej += 1
+        if not short:
+            status, h, err, n_rej, hint = attempt_step(t, y, h, mode, w, par, tab, hint)
+            nrhs += 12 * (n_rej + 1)
+            nrej += n_rej
+            if status != OK:
+                break
+            factor = MAX_FACTOR if err == 0.0 else min(MAX_FACTOR, SAFETY * err ** (-1.0 / 8.0))
+            if n_rej > 0:
+                hit_kink = False
+                jq = -1
+                factor = min(1.0, factor)
+            h_control = h * factor
         nsteps += 1
-        factor = MAX_FACTOR if err == 0.0 else min(MAX_FACTOR, SAFETY * err ** (-1.0 / 8.0))
-        if n_rej > 0:
-            hit_kink = False
-            factor = min(1.0, factor)
         j1c, j1m, d_1, r_1, hint = jerks_and_delta(
             t + h, ynew, K[12, 3], mode, par, tab, hint, True
         )
@@ -485,10 +655,11 @@ def _run(
         if mode == FLIGHT:
             ev_s, ev_kind, hint = detect_in_flight(t, h, w, par, tab, kinks, hint)
         else:
-            ev_s, ev_kind, hint = detect_in_contact(mode, t, h, w, par, tab, hint)
+            ev_s, ev_kind, hint = detect_in_contact(mode, t, h, w, par, tab, gap, hint)
         hstep = h
         if ev_kind != NO_EVENT:
             hit_kink = False
+            jq = -1
             hstep = ev_s * h
             if hstep > H_MIN:
                 # K[0] is the same start: the redone stages overwrite the rest
@@ -504,7 +675,11 @@ def _run(
                     ynew[j] = y[j]
                     K[12, j] = K[0, j]
                 fill_dense(coef, 1.0, y, K[0], j0c, j0m, ynew, K[12], j0c, j0m)
-        tn = kinks[kp] / v if hit_kink else t + hstep
+        tn = t + hstep
+        if hit_kink:
+            tn = kinks[kp] / v
+        elif jq >= 0:
+            tn = jumps[jq] / v
         # --- records: samples, extrema, dents
         si, shint = write_samples(samples, si, sample_t, tn, t, hstep, coef, mode, par, tab, shint)
         d_b = 0.0
@@ -526,6 +701,10 @@ def _run(
             kp += 1
         while kp < kinks.size and kinks[kp] <= v * t + 1e-15:
             kp += 1
+        if jq >= 0:
+            jp = jq + 1
+        while jp < jumps.size and jumps[jp] <= v * t + 1e-15:
+            jp += 1
         if ev_kind != NO_EVENT:
             n_tr = push_row(trans, n_tr, t, float(ev_kind))
             mode, hint = land_on_event(ev_kind, t, y, par, tab, hint)
@@ -534,6 +713,7 @@ def _run(
             j0c, j0m, hint = _start_derivatives(t, y, mode, K, par, tab, hint)
             nrhs += 1
             h, hint = step_after_event(ev_kind, h, t, t1, hstep, coef, par, tab, hint)
+            h_control = h
             continue
         for j in range(4):
             K[0, j] = K[12, j]
@@ -541,13 +721,31 @@ def _run(
             # the constraint's slope jumps here: the jerk does too
             j0c, j0m, hint = jerks(t, y, K[0, 3], mode, par, tab, hint, False)
         else:
+            # (at a curvature jump the jerk is continuous: no restart)
             j0c = j1c
             j0m = j1m
-        h = h * factor
+        h = h_control
         if mode == ELASTIC and d_b > 0.0:
             h = step_toward_loss(h, d_b, r_b, c_b, par)
     out = LoopState(
-        t, h, mode, kp, si, hint, shint, j0c, j0m, nsteps, nrej, nrhs, n_tr, n_dent, status
+        t,
+        h,
+        h_control,
+        h_short,
+        mode,
+        kp,
+        jp,
+        si,
+        hint,
+        shint,
+        j0c,
+        j0m,
+        nsteps,
+        nrej,
+        nrhs,
+        n_tr,
+        n_dent,
+        status,
     )
     return why, out
 
@@ -556,6 +754,8 @@ def _run(
 def integrate(
     tab: Table,
     kinks: NDArray[np.float64],
+    jumps: NDArray[np.float64],
+    jump_sizes: NDArray[np.float64],
     par: Params,
     t0: float,
     t1: float,
@@ -571,6 +771,9 @@ def integrate(
     Args:
         tab: the constraint table (``integrate_types.table_of``).
         kinks: kink positions x (absolute, sorted) over the passage.
+        jumps, jump_sizes: positions x (absolute, sorted) of the constraint's curvature
+            jumps over the passage and their sizes |ΔG''| (1/m): steps in contact stop on
+            those they may not straddle (``jump_allowance``).
         par: the passage's constants.
         y0: initial (y_C, v_C, y_M, v_M).
         sample_t: increasing output times in [t0, t1].
@@ -603,9 +806,30 @@ def integrate(
     kp = 0
     while kp < kinks.size and kinks[kp] <= v * t0 + 1e-15:
         kp += 1
-    st = LoopState(t0, H_FIRST, mode, kp, si, hint, hint, j0c, j0m, 0, 0, 1, 0, 0, OK)
+    jp = 0
+    while jp < jumps.size and jumps[jp] <= v * t0 + 1e-15:
+        jp += 1
+    st = LoopState(
+        t0, H_FIRST, H_FIRST, math.inf, mode, kp, jp, si, hint, hint, j0c, j0m, 0, 0, 1, 0, 0, OK
+    )
     while True:
-        why, st = _run(tab, kinks, par, t1, y, sample_t, max_steps, samples, trans, dents, ext, w, st)
+        why, st = _run(
+            tab,
+            kinks,
+            jumps,
+            jump_sizes,
+            par,
+            t1,
+            y,
+            sample_t,
+            max_steps,
+            samples,
+            trans,
+            dents,
+            ext,
+            w,
+            st,
+        )
         if why == LOOP_NEED_TRANSITIONS:
             trans = grown(trans, st.n_tr, 1)
         elif why == LOOP_NEED_DENTS:

@@ -57,7 +57,7 @@ from sim_core.integrate_types import (
     Params,
     table_of,
 )
-from sim_core.integrator import integrate
+from sim_core.integrator import integrate, jump_allowance
 
 RESOLUTION_STEP = 3.0
 """A step in contact advances the wheel by at most this many ``table.resolution``: the
@@ -327,10 +327,17 @@ def simulate_passage(
     # the last sample may round past t1 by an ulp: it is t1 (else the integrator, which stops
     # at t1, would leave it unfilled as a row of zeros)
     sample_t = np.minimum(t0 + np.arange(n_samples) / spec.sample_rate, t1)
-    kinks = table.kinks_between(v * t0 - 1e-12, v * t1 + table.resolution)
+    x0, x1 = v * t0 - 1e-12, v * t1 + table.resolution
+    kinks = table.kinks_between(x0, x1)
+    # curvature jumps no contact step (at most hmax_contact) could be hurt by are left out
+    jumps, jump_sizes = table.curvature_jumps_between(
+        x0, x1, jump_allowance(par) / par.hmax_contact**3
+    )
     res = integrate(
         tab,
         np.ascontiguousarray(kinks, dtype=np.float64),
+        np.ascontiguousarray(jumps, dtype=np.float64),
+        np.ascontiguousarray(jump_sizes, dtype=np.float64),
         par,
         float(t0),
         float(t1),

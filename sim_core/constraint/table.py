@@ -9,6 +9,14 @@ differ: the contact point jumped, e.g. the wheel rolled onto a flat's corner
 or bridged a hollow). The integrator stops exactly at every kink and restarts
 there (MODEL.md §7).
 
+The table is C¹ at its other nodes but not C²: each piece has its own second
+derivative, and where the exact constraint changes shape (an offset line of a
+rail segment meets the arc of the wheel pivoting on a vertex, G'' jumping by
+1/R) so does the table's. ``curvature_jumps_between`` lists those nodes with the
+size of the jump |ΔG''|; steps in contact stop on the ones whose error over the
+step would exceed the tolerance (``sim_core.integrator``), as on kinks but
+without restarting the jerk (it is continuous there).
+
 A table may be *periodic* (a round wheel on a cosine rail, any wheel on a
 flat rail): it then covers one period [x[0], x[0] + period] and positions wrap.
 Outside a non-periodic table the constraint is continued flat at the end
@@ -125,6 +133,34 @@ class ConstraintTable:
         contact_many(self.x, self.contact_x, self.period, xq.ravel(), out.ravel())
         return out
 
+    def curvature_jumps_between(
+        self, x0: float, x1: float, least: float = 0.0
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(positions, |ΔG''|) of the nodes in (x0, x1] where G'' jumps by more than ``least``.
+
+        Kinks are not listed (their slope jumps: ``kinks_between``). Unwrapped for a
+        periodic table, sorted. A jump below about 1e-9 of the table's curvatures is
+        round-off of the Hermite pieces, not a change of shape: pass ``least`` above it.
+        """
+        if x1 <= x0:
+            return np.empty(0), np.empty(0)
+        if self.period == 0.0:
+            # the nodes are sorted: one compiled pass over those inside
+            i0 = int(np.searchsorted(self.x, x0, side="right"))
+            i1 = int(np.searchsorted(self.x, x1, side="right"))
+            return _jumps_in(self.x, self.y, self.slope_left, self.slope_right, i0, i1, least)
+        jumps = curvature_jumps(self.x, self.y, self.slope_left, self.slope_right, self.period)
+        keep = jumps[:-1] > least  # node n-1 is node 0 one period on
+        xs, js = self.x[:-1][keep], jumps[:-1][keep]
+        p = self.period
+        n0 = int(np.floor((x0 - self.x[0]) / p)) - 1
+        n1 = int(np.floor((x1 - self.x[0]) / p)) + 1
+        shifts = p * np.arange(n0, n1 + 1)[:, None]
+        xs = (xs[None, :] + shifts).ravel()
+        js = np.broadcast_to(js, (shifts.size, js.size)).ravel()
+        inside = (xs > x0) & (xs <= x1)
+        return xs[inside], js[inside]
+
     def kinks_between(self, x0: float, x1: float) -> NDArray[np.float64]:
         """Kink positions in (x0, x1], unwrapped for a periodic table, sorted."""
         if self.kinks.size == 0 or x1 <= x0:
@@ -176,6 +212,82 @@ def table_eval(
         6.0 * t * u * (y[i + 1] - y[i]) + u * (1.0 - 3.0 * t) * m0 + t * (3.0 * t - 2.0) * m1
     ) / h
     return val, der, i
+
+
+@numba.njit(cache=True, inline="always")
+def _second_derivatives(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    sl: NDArray[np.float64],
+    sr: NDArray[np.float64],
+    i: int,
+) -> tuple[float, float]:
+    """G'' at the left and right ends of Hermite piece i (it is linear in between)."""
+    r = 1.0 / (x[i + 1] - x[i])
+    d = (y[i + 1] - y[i]) * r
+    return (6.0 * d - 4.0 * sr[i] - 2.0 * sl[i + 1]) * r, (-6.0 * d + 2.0 * sr[i] + 4.0 * sl[i + 1]) * r
+
+
+@numba.njit(cache=True)
+def _jumps_in(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    sl: NDArray[np.float64],
+    sr: NDArray[np.float64],
+    i0: int,
+    i1: int,
+    least: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(positions, |ΔG''|) of the interior non-kink nodes i0 <= i < i1 with a jump above ``least``."""
+    n = x.size
+    lo = max(i0, 1)
+    hi = min(i1, n - 1)
+    pos = np.empty(max(hi - lo, 0))
+    size = np.empty(max(hi - lo, 0))
+    k = 0
+    if lo < hi:
+        _, before = _second_derivatives(x, y, sl, sr, lo - 1)
+        for i in range(lo, hi):
+            after, end = _second_derivatives(x, y, sl, sr, i)
+            jump = abs(after - before)
+            if sl[i] == sr[i] and jump > least:
+                pos[k] = x[i]
+                size[k] = jump
+                k += 1
+            before = end
+    return pos[:k], size[:k]
+
+
+@numba.njit(cache=True)
+def curvature_jumps(
+    x: NDArray[np.float64],
+    y: NDArray[np.float64],
+    sl: NDArray[np.float64],
+    sr: NDArray[np.float64],
+    period: float,
+) -> NDArray[np.float64]:
+    """|G''(x_i+) - G''(x_i-)| at every node from the Hermite pieces on both sides (1/m).
+
+    0 at kinks (the slope jumps there: a stop of its own) and at the ends of a
+    non-periodic table; node 0 and node n-1 of a periodic table are one point.
+    On a piece of length h with values y0, y1 and slopes m0, m1 the second
+    derivative runs linearly from (6·Δ - 4·m0 - 2·m1)/h to (-6·Δ + 2·m0 + 4·m1)/h,
+    Δ = (y1 - y0)/h. For a line (G'' = 0) meeting an arc of radius 0.46 m the
+    jump is 1/0.46 = 2.17 /m.
+    """
+    n = x.size
+    left_end = np.empty(n - 1)  # G'' at each piece's left end
+    right_end = np.empty(n - 1)  # ... and at its right end
+    for i in range(n - 1):
+        left_end[i], right_end[i] = _second_derivatives(x, y, sl, sr, i)
+    out = np.zeros(n)
+    for i in range(1, n - 1):
+        if sl[i] == sr[i]:
+            out[i] = abs(left_end[i] - right_end[i - 1])
+    if period > 0.0 and n > 2 and sl[0] == sr[0] and sl[n - 1] == sr[n - 1]:
+        out[0] = abs(left_end[0] - right_end[n - 2])
+        out[n - 1] = out[0]
+    return out
 
 
 @numba.njit(cache=True)
