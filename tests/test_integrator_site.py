@@ -71,7 +71,9 @@ def force_error(out: PassageOutput, ref: PassageOutput) -> float:
 
 def transition_error(out: PassageOutput, ref: PassageOutput) -> float:
     assert [t.kind for t in out.transitions] == [t.kind for t in ref.transitions]
-    return max((abs(a.t - b.t) for a, b in zip(out.transitions, ref.transitions)), default=0.0)
+    return max(
+        (abs(a.t - b.t) for a, b in zip(out.transitions, ref.transitions, strict=True)), default=0.0
+    )
 
 
 def test_the_window_is_the_site_regime() -> None:
@@ -91,12 +93,12 @@ def _jumps_by_differences(table: ConstraintTable) -> np.ndarray:
     x = table.x[1:-1]
     eps = 1e-3 * np.min(np.diff(table.x))
     # G'' is linear on a piece: two one-sided differences of the slope extrapolate it to the node
-    right = (4.0 * table.slope(x + eps) - table.slope(x + 2 * eps) - 3.0 * table.slope_right[1:-1]) / (
-        2.0 * eps
-    )
-    left = (3.0 * table.slope_left[1:-1] - 4.0 * table.slope(x - eps) + table.slope(x - 2 * eps)) / (
-        2.0 * eps
-    )
+    right = (
+        4.0 * table.slope(x + eps) - table.slope(x + 2 * eps) - 3.0 * table.slope_right[1:-1]
+    ) / (2.0 * eps)
+    left = (
+        3.0 * table.slope_left[1:-1] - 4.0 * table.slope(x - eps) + table.slope(x - 2 * eps)
+    ) / (2.0 * eps)
     return np.abs(right - left)
 
 
@@ -123,7 +125,9 @@ def test_stop_list_holds_every_curvature_jump_above_the_threshold() -> None:
 
 
 @pytest.mark.parametrize("rtol", [1e-8, 1e-10])
-def test_force_follows_the_tolerance(rtol: float, record_property: Callable[[str, object], None]) -> None:
+def test_force_follows_the_tolerance(
+    rtol: float, record_property: Callable[[str, object], None]
+) -> None:
     """Against rtol 1e-12 on the same table: max |ΔF|/P within 100·rtol, transitions within
     0.01·rtol s (measured: 21·rtol and 6e-12 s at rtol 1e-8; before the curvature jumps were
     stops, 2.3e-3 and 3.4e-7 s at rtol 1e-8 on the 6 m site)."""
