@@ -1,4 +1,4 @@
-"""Compiled adaptive DOP853 integrator with located contact events.
+"""Compiled adaptive DOP853 integrator (with a DOPRI5 short step) and located contact events.
 
 The state is (y_C, v_C, y_M, v_M); on a rigid foundation y_M ≡ v_M ≡ 0. The
 right-hand side is smooth inside each *mode* — flight (F = 0), elastic contact
@@ -12,7 +12,17 @@ ever straddles a change of law (MODEL.md §4, §7):
 - yield / unyield: δ crosses δ_Y (± ``ContactModel.switch_width``, MODEL.md §5).
 
 Kinks of the constraint y_C^k (contact-point jumps) are known in advance
-(``ConstraintTable.kinks``): steps in contact stop exactly on them.
+(``ConstraintTable.kinks``): steps in contact stop exactly on them, and restart
+the jerk there. So are its *curvature jumps* (``ConstraintTable.
+curvature_jumps_between``: C¹ nodes where G'' jumps, e.g. by 1/R where a rail
+segment's offset line meets the arc about a vertex): a step in contact stops on
+the first one it may not straddle (``stop_on_jump``: its error 0.0016·ω·V²·|ΔG''|·h³
+in velocity within ``JUMP_SHARE`` of the tolerance), with no restart (the jerk is
+continuous there). On a rough sampled rail that is ~3 stops per mm; the steps they
+cut far below DOP853's proposal (h·ω ~ 0.01) are taken by the Dormand–Prince 5(4)
+pair (``short_step``: 6 new right-hand sides against 12) under its own error
+estimate, falling back to DOP853 if it rejects; DOP853's proposal is kept for
+when the intervals are long again.
 
 The concerns live in small compiled functions around one short loop
 (``_run``, compiled without reference counting: it allocates nothing, and
@@ -24,14 +34,16 @@ of diffrax:
 | inputs, outputs, codes (``Table``, ``Params``, ``Event``, ``Result``) | ``integrate_types`` |
 | the vector field, F, jerks, δ and dδ/dt on a step | ``integrate_model`` |
 | the step (``rk_step``) and its size control (``attempt_step``) | here |
+| the short step (``short_step``) and when it is taken (``short_reach``) | here, ``dopri5`` |
+| breakpoints: kinks and the curvature jumps a step may not straddle (``stop_on_jump``) | here, ``constraint.table`` |
 | dense output: the septic Hermite interpolant | ``integrate_dense`` |
 | event detection and location (one root finder) | ``integrate_events`` |
 | samples, extrema, dents, transitions | ``integrate_records`` |
 
 Dense output is the septic Hermite polynomial through the positions,
 velocities, accelerations and jerks at both step ends (exact for flight,
-O(h⁸) in contact). Extrema (peak and least δ and force in contact) are taken
-from that continuous solution.
+O(h⁸) in contact), whichever pair took the step. Extrema (peak and least δ
+and force in contact) are taken from that continuous solution.
 
 Worked example: ``sim_core.passage.simulate_passage`` wraps this; see there.
 """
@@ -151,6 +163,18 @@ _E45 = dopri5.E
 
 
 @numba.njit(cache=True, inline="always")
+def _store_stage(
+    w: Work, s: int, state: NDArray[np.float64], ac: float, am: float, d: float
+) -> None:
+    """Row s of K = f at a stage whose state is ``state`` (accelerations ac, am), and δ there."""
+    w.K[s, 0] = state[1]
+    w.K[s, 1] = ac
+    w.K[s, 2] = state[3]
+    w.K[s, 3] = am
+    w.dstage[s] = d
+
+
+@numba.njit(cache=True, inline="always")
 def _dop853(
     t: float,
     y: NDArray[np.float64],
@@ -166,7 +190,6 @@ def _dop853(
     K = w.K
     tmp = w.tmp
     ynew = w.ynew
-    dstage = w.dstage
     for s in range(1, 12):
         for j in range(nc):
             acc = 0.0
@@ -174,11 +197,7 @@ def _dop853(
                 acc += _A[s, q] * K[q, j]
             tmp[j] = y[j] + h * acc
         ac, am, d, hint = rhs(t + _C[s] * h, tmp[0], tmp[1], tmp[2], tmp[3], mode, par, tab, hint)
-        K[s, 0] = tmp[1]
-        K[s, 1] = ac
-        K[s, 2] = tmp[3]
-        K[s, 3] = am
-        dstage[s] = d
+        _store_stage(w, s, tmp, ac, am, d)
     for j in range(nc):
         acc = 0.0
         for q in range(12):
@@ -187,11 +206,7 @@ def _dop853(
     for j in range(nc, 4):
         ynew[j] = y[j]
     ac, am, d, hint = rhs(t + h, ynew[0], ynew[1], ynew[2], ynew[3], mode, par, tab, hint)
-    K[12, 0] = ynew[1]
-    K[12, 1] = ac
-    K[12, 2] = ynew[3]
-    K[12, 3] = am
-    dstage[12] = d
+    _store_stage(w, 12, ynew, ac, am, d)
     # DOP853 error norm (as in Hairer's code and SciPy)
     err5 = 0.0
     err3 = 0.0
@@ -251,7 +266,6 @@ def _dopri5(
     K = w.K
     tmp = w.tmp
     ynew = w.ynew
-    dstage = w.dstage
     for s in range(1, 6):
         for j in range(nc):
             acc = 0.0
@@ -259,11 +273,7 @@ def _dopri5(
                 acc += _A45[s, q] * K[q, j]
             tmp[j] = y[j] + h * acc
         ac, am, d, hint = rhs(t + _C45[s] * h, tmp[0], tmp[1], tmp[2], tmp[3], mode, par, tab, hint)
-        K[s, 0] = tmp[1]
-        K[s, 1] = ac
-        K[s, 2] = tmp[3]
-        K[s, 3] = am
-        dstage[s] = d
+        _store_stage(w, s, tmp, ac, am, d)
     for j in range(nc):
         acc = 0.0
         for q in range(6):
@@ -272,16 +282,10 @@ def _dopri5(
     for j in range(nc, 4):
         ynew[j] = y[j]
     ac, am, d, hint = rhs(t + h, ynew[0], ynew[1], ynew[2], ynew[3], mode, par, tab, hint)
-    K[12, 0] = ynew[1]
-    K[12, 1] = ac
-    K[12, 2] = ynew[3]
-    K[12, 3] = am
-    dstage[12] = d
+    _store_stage(w, 12, ynew, ac, am, d)
     # rows 6..11 repeat the end: the event scan takes extremes over rows 0..12
     for q in range(6, 12):
-        for j in range(4):
-            K[q, j] = K[12, j]
-        dstage[q] = d
+        _store_stage(w, q, ynew, ac, am, d)
     err = 0.0
     for j in range(nc):
         atol = par.atol_y if j % 2 == 0 else par.atol_v
