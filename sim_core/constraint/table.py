@@ -152,10 +152,7 @@ class ConstraintTable:
         jumps = curvature_jumps(self.x, self.y, self.slope_left, self.slope_right, self.period)
         keep = jumps[:-1] > least  # node n-1 is node 0 one period on
         xs, js = self.x[:-1][keep], jumps[:-1][keep]
-        p = self.period
-        n0 = int(np.floor((x0 - self.x[0]) / p)) - 1
-        n1 = int(np.floor((x1 - self.x[0]) / p)) + 1
-        shifts = p * np.arange(n0, n1 + 1)[:, None]
+        shifts = self._period_shifts(x0, x1)[:, None]
         xs = (xs[None, :] + shifts).ravel()
         js = np.broadcast_to(js, (shifts.size, js.size)).ravel()
         inside = (xs > x0) & (xs <= x1)
@@ -168,11 +165,16 @@ class ConstraintTable:
         if self.period == 0.0:
             k = self.kinks
             return np.sort(k[(k > x0) & (k <= x1)])
+        allk = (self.kinks[None, :] + self._period_shifts(x0, x1)[:, None]).ravel()
+        return np.unique(allk[(allk > x0) & (allk <= x1)])
+
+    def _period_shifts(self, x0: float, x1: float) -> NDArray[np.float64]:
+        """Multiples of the period that carry the table's one period over [x0, x1] (and one more
+        each side)."""
         p = self.period
         n0 = int(np.floor((x0 - self.x[0]) / p)) - 1
         n1 = int(np.floor((x1 - self.x[0]) / p)) + 1
-        allk = (self.kinks[None, :] + p * np.arange(n0, n1 + 1)[:, None]).ravel()
-        return np.unique(allk[(allk > x0) & (allk <= x1)])
+        return p * np.arange(n0, n1 + 1, dtype=np.float64)
 
 
 @numba.njit(cache=True, inline="always")
