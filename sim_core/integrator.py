@@ -645,11 +645,13 @@ def _run(
         if mode == PLASTIC and par.track_dents and n_dent + dent_rows(h, par) > dents.shape[0]:
             why = LOOP_NEED_DENTS
             break
-        # --- the step: the short pair if a breakpoint (or the approach of a loss) cut
-        # DOP853's proposal to a step within the short pair's reach; else DOP853
+        # --- the step: the short pair if a breakpoint cut DOP853's proposal to a step
+        # within the short pair's reach; else DOP853 (so a passage without breakpoints
+        # steps exactly as before)
         short = False
         gap = STAGE_GAP
-        if mode != FLIGHT and h < h_control and h <= h_short and h <= reach:
+        cut = (hit_kink or jq >= 0) and h < h_control
+        if mode != FLIGHT and cut and h <= h_short and h <= reach:
             err, hint = short_step(t, y, h, mode, w, par, tab, hint)
             nrhs += 6
             # its own proposal, not capped in growth: the breakpoints set the steps, and

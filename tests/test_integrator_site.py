@@ -88,8 +88,9 @@ def test_the_window_is_the_site_regime() -> None:
     assert np.allclose(np.median(sizes), 1.0 / RADIUS, rtol=0.01)
 
 
-def _jumps_by_differences(table: ConstraintTable) -> np.ndarray:
-    """|ΔG''| at every interior node from differences of the table's own slope (not its pieces)."""
+def _jumps_by_differences(table: ConstraintTable) -> tuple[np.ndarray, np.ndarray]:
+    """(|ΔG''|, max |G''| of both sides) at every interior node from differences of the
+    table's own slope (not its pieces)."""
     x = table.x[1:-1]
     eps = 1e-3 * np.min(np.diff(table.x))
     # G'' is linear on a piece: two one-sided differences of the slope extrapolate it to the node
@@ -99,12 +100,13 @@ def _jumps_by_differences(table: ConstraintTable) -> np.ndarray:
     left = (
         3.0 * table.slope_left[1:-1] - 4.0 * table.slope(x - eps) + table.slope(x - 2 * eps)
     ) / (2.0 * eps)
-    return np.abs(right - left)
+    return np.abs(right - left), np.maximum(np.abs(right), np.abs(left))
 
 
 def test_stop_list_holds_every_curvature_jump_above_the_threshold() -> None:
     """The passage's stop list: every non-kink node whose G'' jumps by more than the least
-    jump a contact step could be hurt by (``jump_allowance``/hmax³), and no other."""
+    jump a contact step could be hurt by (``jump_allowance``/hmax³) and by more than the
+    interpolation's own (``table.JUMP_RELATIVE``), and no other."""
     table = rough_table()
     par_like = Params.build(
         law=0, c=1.0, f_y=0.0, d_y=0.0, theta=0.0, hyst=0.0, mass=paper.MASS, load=paper.LOAD,
@@ -115,10 +117,13 @@ def test_stop_list_holds_every_curvature_jump_above_the_threshold() -> None:
     least = jump_allowance(par_like) / par_like.hmax_contact**3
     assert 1e-6 < least < 1e-3  # far below an arc's 2.17 /m, far above round-off
     listed, sizes = table.curvature_jumps_between(-1e-12, LENGTH, least)
-    by_diff = _jumps_by_differences(table)
+    by_diff, curvature = _jumps_by_differences(table)
     kink = table.slope_left[1:-1] != table.slope_right[1:-1]
     inside = (table.x[1:-1] > -1e-12) & (table.x[1:-1] <= LENGTH)
-    chosen = (by_diff > least) & ~kink & inside
+    real = by_diff > 0.02 * curvature  # the table's JUMP_RELATIVE is 0.01: no node is near it
+    sig = by_diff > least
+    assert np.all((by_diff <= 1e-3 * curvature) | (by_diff >= 0.9 * curvature) | ~sig)
+    chosen = (by_diff > least) & ~kink & inside & real
     assert np.array_equal(listed, table.x[1:-1][chosen])
     assert np.allclose(sizes, by_diff[chosen], rtol=1e-4, atol=1e-6)
     assert np.all(np.isin(table.kinks, listed, invert=True))
