@@ -190,6 +190,7 @@ def _dop853(
     K = w.K
     tmp = w.tmp
     ynew = w.ynew
+    dstage = w.dstage
     for s in range(1, 12):
         for j in range(nc):
             acc = 0.0
@@ -197,7 +198,11 @@ def _dop853(
                 acc += _A[s, q] * K[q, j]
             tmp[j] = y[j] + h * acc
         ac, am, d, hint = rhs(t + _C[s] * h, tmp[0], tmp[1], tmp[2], tmp[3], mode, par, tab, hint)
-        _store_stage(w, s, tmp, ac, am, d)
+        K[s, 0] = tmp[1]
+        K[s, 1] = ac
+        K[s, 2] = tmp[3]
+        K[s, 3] = am
+        dstage[s] = d
     for j in range(nc):
         acc = 0.0
         for q in range(12):
