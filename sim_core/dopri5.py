@@ -51,5 +51,3 @@ E = np.array(
 )
 """The error estimator: the 5th-order minus the embedded 4th-order weights, over all 7 stages."""
 
-STAGE_GAP = 0.5
-"""The largest gap between stage times (3/10 to 4/5) as a fraction of the step."""

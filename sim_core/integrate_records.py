@@ -31,7 +31,7 @@ from numpy.typing import NDArray
 
 from sim_core.constraint.table import linear_at
 from sim_core.integrate_dense import dense_state
-from sim_core.integrate_events import extremum_in
+from sim_core.integrate_events import curvature_of_delta, extremum_in, interior_reach
 from sim_core.integrate_model import (
     constraint_at,
     delta_rate,
@@ -172,45 +172,6 @@ def write_samples(
         _write_row(samples, si, ts, v * ts, yc, vc, ym, vm, ck, d, force(d, mode, par, sc), mode)
         si += 1
     return si, hint
-
-
-@numba.njit(cache=True, inline="always")
-def curvature_of_delta(h: float, coef: NDArray[np.float64], par: Params) -> float:
-    """A bound on |d²δ/dt²| over a contact step of length ``h`` with dense coefficients ``coef``.
-
-    δ = y_C^k(V·t) - y_C + y_M: the septic of each body has |p''(s)| <= Σ k(k-1)|c_k| on
-    s in [0, 1] (per s², hence the 1/h²), and the constraint's Hermite pieces
-    |y_C^k''| <= ``par.c2max`` between kinks (a contact step never straddles one).
-    For the paper's wheel in a 5 µs step on the site's rail (V = 44 m/s, c2max ~ 2 /m):
-    ~100 m/s² from the wheel and ~4 000 m/s² from the rail.
-    """
-    a = 0.0
-    for k in range(2, 8):
-        a += k * (k - 1) * abs(coef[0, k])
-    if par.compliant:
-        for k in range(2, 8):
-            a += k * (k - 1) * abs(coef[1, k])
-    v = par.speed
-    return a / (h * h) + v * v * par.c2max
-
-
-@numba.njit(cache=True, inline="always")
-def interior_reach(d_a: float, d_b: float, h: float, m: float, x: float) -> float:
-    """How far past max(d_a, d_b) (or below the min) δ can reach inside a step, with |δ''| <= m.
-
-    At an interior extremum t* of δ (δ'(t*) = 0), |δ'(t)| <= m·|t - t*|, so δ(t*) is
-    within m·t*²/2 of δ(0) and m·(h - t*)²/2 of δ(h): at most m·h²/8 beyond the larger
-    end value (below the smaller, for a minimum). Plus a margin for what the end values
-    do not see exactly: the step's end is read 1e-13·max(1, |x|) before x (``before``:
-    at most 1e-12·max(1, |x|) in δ for a constraint slope up to 10), and round-off of
-    the dense sums (1e-9 relative).
-
-    A 5 µs step on the site's rail (|δ''| <= 4 000 m/s², δ = 0.1 mm at both ends):
-
-        >>> round(interior_reach(1e-4, 1e-4, 5e-6, 4e3, 1.0) * 1e9, 4)  # nm: 12.5 of curvature
-        12.5011
-    """
-    return m * h * h / 8.0 + 1e-12 * max(1.0, abs(x)) + 1e-9 * max(abs(d_a), abs(d_b))
 
 
 @numba.njit(cache=True, inline="always")

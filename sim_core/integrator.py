@@ -58,7 +58,7 @@ from numpy.typing import NDArray
 
 from sim_core import dop853, dopri5
 from sim_core.integrate_dense import fill_dense
-from sim_core.integrate_events import STAGE_GAP, detect_in_contact, detect_in_flight
+from sim_core.integrate_events import detect_in_contact, detect_in_flight
 from sim_core.integrate_model import (
     constraint_at,
     delta_rate,
@@ -288,9 +288,6 @@ def _dopri5(
         ynew[j] = y[j]
     ac, am, d, hint = rhs(t + h, ynew[0], ynew[1], ynew[2], ynew[3], mode, par, tab, hint)
     _store_stage(w, 12, ynew, ac, am, d)
-    # rows 6..11 repeat the end: the event scan takes extremes over rows 0..12
-    for q in range(6, 12):
-        _store_stage(w, q, ynew, ac, am, d)
     err = 0.0
     for j in range(nc):
         atol = par.atol_y if j % 2 == 0 else par.atol_v
@@ -316,9 +313,8 @@ def short_step(
 ) -> tuple[float, int]:
     """One Dormand–Prince 5(4) step (``sim_core.dopri5``): as ``rk_step``, at half its price.
 
-    Fills K[1..5] and K[12] (the end: FSAL) and ynew, repeats the end in rows 6..11
-    (so that the event scan's extremes over the rows stay those of the stages); returns
-    (its error norm, hint). For steps the breakpoints cut far below DOP853's proposal.
+    Fills K[1..5] and K[12] (the end: FSAL) and ynew (rows 6..11 are left as they
+    were: nothing after the step reads them); returns (its error norm, hint). For steps the breakpoints cut far below DOP853's proposal.
     """
     if par.compliant:
         return _dopri5(t, y, h, mode, w, par, tab, hint, 4)
@@ -424,9 +420,6 @@ def attempt_step(
 
     Returns (status, h taken, its error norm, rejected attempts, hint).
     """
-    if mode != FLIGHT:
-        ck, hint = value_at_x(tab, par.speed * t, hint)
-        w.dstage[0] = -y[0] + ck + y[2]
     n_rej = 0
     while True:
         err, hint = rk_step(t, y, h, mode, w, par, tab, hint)
@@ -654,7 +647,9 @@ def _run(
         # within the short pair's reach; else DOP853 (so a passage without breakpoints
         # steps exactly as before)
         short = False
-        gap = STAGE_GAP
+        if mode != FLIGHT:  # δ at the start, for the event scan and the loss aim
+            ck, hint = value_at_x(tab, v * t, hint)
+            w.dstage[0] = -y[0] + ck + y[2]
         cut = (hit_kink or jq >= 0) and h < h_control
         if mode != FLIGHT and cut and h <= h_short and h <= reach:
             err, hint = short_step(t, y, h, mode, w, par, tab, hint)
@@ -664,7 +659,6 @@ def _run(
             h_short = h * max(MIN_FACTOR, SAFETY * err ** (-1.0 / 5.0)) if err > 0.0 else math.inf
             if err <= 1.0:
                 short = True
-                gap = dopri5.STAGE_GAP
             else:
                 nrej += 1
         if not short:
@@ -688,7 +682,7 @@ def _run(
         if mode == FLIGHT:
             ev_s, ev_kind, hint = detect_in_flight(t, h, w, par, tab, kinks, hint)
         else:
-            ev_s, ev_kind, hint = detect_in_contact(mode, t, h, w, par, tab, gap, hint)
+            ev_s, ev_kind, hint = detect_in_contact(mode, t, h, w, par, tab, hint)
         hstep = h
         if ev_kind != NO_EVENT:
             hit_kink = False
