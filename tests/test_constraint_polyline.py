@@ -4,8 +4,9 @@ Every out-of-round wheel kind (ideal flat, rounded flat, sampled outline) on eve
 polyline rail kind (random roughness, a measured file, a dented rail), on short windows
 where the flat or the outline's bumps carry the wheel: values within 1e-12 m of the
 ψ-search's table at 99 % of 20 000 points, and where they differ most the sweep's value is
-the exact one (a brute-force reference) to the table's tolerance (1e-11 m; the ψ-search now
-and then misses a wheel corner by ~1e-11 m); node values within 1e-15 m of the exact solve
+the exact one (a brute-force reference) to the table's tolerance (1e-11 m; an ideal flat's
+corners are evaluated exactly by the ψ-search, a sampled wheel's many corners are not and
+may in principle be missed by ~1e-11 m); node values within 1e-15 m of the exact solve
 (or of the reference); the ψ-search's kinks (slope jumps > 1e-6) found at the same positions
 within 1e-9 m, and the sweep's extra kinks (a wheel corner passing a rail vertex) confirmed
 by one-sided slopes of the reference.
@@ -136,8 +137,8 @@ def test_polyline_sweep_against_general(wheel_kind: str, rail_kind: str) -> None
     yf, yg = fast.evaluate(xq), gen.evaluate(xq)
     diff = np.abs(yf - yg)
     assert np.quantile(diff, 0.99) < 1e-12
-    # where the two differ most, the sweep holds the exact value (the ψ-search now and then
-    # misses a wheel corner by ~1e-11 m)
+    # where the two differ most, the sweep holds the exact value (the ψ-search may miss a
+    # sampled wheel's corner by ~1e-11 m; an ideal flat's corners it evaluates exactly)
     worst = xq[np.argsort(diff)[-12:]]
     yr = reference(wheel, rail, worst, phase)
     # the table's own tolerance: Hermite 1e-13, and a slope jump below KINK_SLOPE = 1e-7 is
