@@ -1,7 +1,8 @@
 """A passage over a rough sampled rail: curvature jumps as stops, the short step, convergence.
 
 The issue's site (``benchmarks.constraint_bench.site_rail``: a rail sampled every
-0.5 mm with 10 µm rms roughness) on 0.3 m, the paper's wheel with a 50 mm ideal
+0.5 mm with 10 µm rms roughness, read from its file by :mod:`tests.stored_rails` so that
+it is the same on every CPU) on 0.3 m, the paper's wheel with a 50 mm ideal
 flat at 160 km/h whose flat strikes mid-window (loss and return of contact). The
 table is C¹ at ~2000 nodes where the exact constraint passes from a rail segment's
 offset line to the arc of the wheel pivoting on a vertex (G'' jumps by 1/R = 2.17 /m):
@@ -20,7 +21,6 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from benchmarks.constraint_bench import site_rail
 from sim_core import paper
 from sim_core.constraint import tabulate_constraint
 from sim_core.constraint.table import ConstraintTable
@@ -30,6 +30,7 @@ from sim_core.integrator import jump_allowance
 from sim_core.passage import PassageOutput, PassageSpec, simulate_passage
 from sim_core.wheel import WheelOutline
 from tests import reference_solver as rs
+from tests.stored_rails import site_rail_0p3
 
 LENGTH = 0.3
 RADIUS = 0.46
@@ -45,7 +46,7 @@ def report(record_property: Callable[[str, object], None], name: str, value: obj
 @functools.cache
 def rough_table() -> ConstraintTable:
     wheel = WheelOutline.ideal_flat(RADIUS, 0.05)
-    return tabulate_constraint(wheel, site_rail(LENGTH, seed=5), 0.0, LENGTH, phase=FLAT_PHASE)
+    return tabulate_constraint(wheel, site_rail_0p3(), 0.0, LENGTH, phase=FLAT_PHASE)
 
 
 def spec(rtol: float) -> PassageSpec:

@@ -19,7 +19,6 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from benchmarks.constraint_bench import site_rail
 from sim_core import paper
 from sim_core.constraint import tabulate_constraint
 from sim_core.contact_laws import HERTZ, ContactLaw
@@ -28,6 +27,7 @@ from sim_core.integrate_model import curvature_bound, delta_rate, jerks_and_delt
 from sim_core.integrate_records import curvature_of_delta, interior_reach
 from sim_core.integrate_types import ELASTIC, Params, Table, table_of
 from sim_core.wheel import WheelOutline
+from tests.stored_rails import site_rail_0p3
 
 SPEED = 160 / 3.6
 N_STEPS = 400
@@ -105,7 +105,7 @@ def _wheel_motion(
 def test_interior_reach_bounds_delta_inside_contact_steps(
     record_property: Callable[[str, object], None],
 ) -> None:
-    table = tabulate_constraint(WheelOutline.round(0.46), site_rail(0.3, seed=5), 0.0, 0.3)
+    table = tabulate_constraint(WheelOutline.round(0.46), site_rail_0p3(), 0.0, 0.3)
     tab = table_of(table)
     par = _site_params(tab)
     kinks = np.asarray(table.kinks)

@@ -58,6 +58,7 @@ from numpy.typing import NDArray
 from sim_core.constraint.contact_zones import contact_zones
 from sim_core.constraint.nodes import (
     HERMITE_TOL,
+    KINK_SLOPE,
     MAX_STEPS,
     NCOL,
     RISER,
@@ -1268,6 +1269,37 @@ def sweep_kernel(
     return out[order]
 
 
+def _join_round(
+    sw: NDArray[np.float64],
+    i: int,
+    rn: NDArray[np.float64],
+    R: float,
+    poly: RailPolyline,
+    col: int,
+) -> None:
+    """Node i of the sweep's rows ``sw``, a zone's end shared with a gap, given the round
+    wheel's slope on the gap's side (``col``: SL at a zone's start, SR at its end; and the
+    round contact point at its end): the round table's node there (the zones end at its
+    nodes), else the round closed form's (smooth between the round table's nodes).
+
+    The sweep's global solve at its end node finds one winner, and at a kink of the round
+    wheel (a valley of the rail: two segments carry the wheel) which one is a tie to the last
+    bit; the other side's slope taken from it made the table dip by up to ~3e-10 m under the
+    true y_C^k next to the zone (found on a CPU where the rail's last bits flipped the tie).
+    """
+    x = float(sw[i, X])
+    j = int(np.searchsorted(rn[:, X], x))
+    if j < rn.shape[0] and rn[j, X] == x:
+        row = rn[j]
+    else:
+        row = poly_points(np.array([x]), R, poly.vx, poly.vy)[0]
+    sw[i, col] = row[col]
+    if col == SR:
+        sw[i, XD] = row[XD]
+    if abs(sw[i, SL] - sw[i, SR]) > KINK_SLOPE:
+        sw[i, K] = 1.0
+
+
 def tabulate_polyline(
     wheel: WheelOutline,
     rail: RailProfile,
@@ -1319,11 +1351,16 @@ def tabulate_polyline(
     ie = 0
     for kind, c, d in pieces:
         if kind == "zone":
-            parts.append(
-                sweep_kernel(
-                    P, R, poly.vx, poly.vy, poly.slope, phase, c, d, nint(c, d), HERMITE_TOL
-                )
+            sw = sweep_kernel(
+                P, R, poly.vx, poly.vy, poly.slope, phase, c, d, nint(c, d), HERMITE_TOL
             )
+            # a zone's end shared with a gap: the gap's side of that node is the round
+            # wheel's (the sweep's global solve there sees one side only)
+            if c > x0:
+                _join_round(sw, 0, rn, R, poly, SL)
+            if d < x1:
+                _join_round(sw, sw.shape[0] - 1, rn, R, poly, SR)
+            parts.append(sw)
             continue
         if c not in zone_ends:
             parts.append(ends[ie : ie + 1])
