@@ -103,6 +103,10 @@ def site_rows(repeat: int = 5, general: bool = True) -> list[dict[str, float | s
             "speedup": tg / nxt if tg > 0 else 0.0,
         }
         row.update(site_passage(wheel, rail, length, repeat))
+        # the first wheel on its rail: its table (the rail's round table included) and the
+        # integration, at 160 km/h
+        duration = length / (160 / 3.6)
+        row["first_wheel_passage_rtf"] = duration / (first + float(row["integration_ms"]) * 1e-3)
         rows.append(row)
     return rows
 

@@ -43,10 +43,9 @@ from sim_core.constraint.nodes import (
     SL,
     SR,
     XD,
+    K,
     V,
     X,
-    add_node,
-    grow,
     merge_close,
     stretch,
     table_from_nodes,
@@ -319,6 +318,29 @@ def _overtake(
     return b
 
 
+@numba.njit(cache=True, inline="always")
+def _row(
+    nodes: NDArray[np.float64],
+    n: int,
+    x: float,
+    v: float,
+    sl: float,
+    sr: float,
+    xd: float,
+    k: float,
+) -> None:
+    """Row n of ``nodes`` (room known) set to a node (:func:`~sim_core.constraint.nodes.add_node`'s
+    columns), in place: the envelope's ~30 000 nodes of a 6 m rail cost 4x less than through
+    add_node's returned array."""
+    nodes[n] = 0.0
+    nodes[n, X] = x
+    nodes[n, V] = v
+    nodes[n, SL] = sl
+    nodes[n, SR] = sr
+    nodes[n, XD] = xd
+    nodes[n, K] = k
+
+
 @numba.njit(cache=True)
 def _envelope_nodes(
     x0: float,
@@ -396,7 +418,7 @@ def _envelope_nodes(
         sk[ns] = kink if ns > 0 else 0.0
         ns += 1
     # the nodes: grid points, the starts of the stack's segments, and their forms' breaks
-    nodes = np.empty((3 * nint + 3 * ns + 64, NCOL))
+    nodes = np.empty((nint + 1 + 3 * ns + 1, NCOL))  # grid, and per segment <= 3
     nn = 0
     h = (x1 - x0) / nint
     i = 0
@@ -408,11 +430,10 @@ def _envelope_nodes(
             # the start of j: the left side from the segment before
             vl, sl, _, _ = _seg_value(st[m - 1], a, R, vx, vy)
             vr, sr, xd, _ = _seg_value(j, a, R, vx, vy)
-            nodes = grow(nodes, nn + 1)
             if nn > 0 and a - nodes[nn - 1, X] <= 1e-13 * max(1.0, abs(a)):
                 nn -= 1
                 sl = nodes[nn, SL]
-            nodes = add_node(nodes, nn, a, max(vl, vr), sl, sr, xd, sk[m])
+            _row(nodes, nn, a, max(vl, vr), sl, sr, xd, sk[m])
             nn += 1
         e0, e1 = _seg_breaks(j, R, vx, vy)
         for e in (e0, e1):
@@ -425,12 +446,12 @@ def _envelope_nodes(
                     nn == 0 or xg - nodes[nn - 1, X] > 1e-13 * max(1.0, abs(xg))
                 ):
                     v, s, xd, _ = _seg_value(j, xg, R, vx, vy)
-                    nodes = add_node(nodes, nn, xg, v, s, s, xd, 0.0)
+                    _row(nodes, nn, xg, v, s, s, xd, 0.0)
                     nn += 1
                 i += 1
             if a < e < b and e - nodes[nn - 1, X] > 1e-13 * max(1.0, abs(e)):
                 v, s, xd, _ = _seg_value(j, e, R, vx, vy)
-                nodes = add_node(nodes, nn, e, v, s, s, xd, 0.0)
+                _row(nodes, nn, e, v, s, s, xd, 0.0)
                 nn += 1
         while i <= nint:
             xg = x0 + i * h if i < nint else x1
@@ -440,7 +461,7 @@ def _envelope_nodes(
                 nn == 0 or xg - nodes[nn - 1, X] > 1e-13 * max(1.0, abs(xg))
             ):
                 v, s, xd, _ = _seg_value(j, xg, R, vx, vy)
-                nodes = add_node(nodes, nn, xg, v, s, s, xd, 0.0)
+                _row(nodes, nn, xg, v, s, s, xd, 0.0)
                 nn += 1
             i += 1
     return nodes[:nn]
