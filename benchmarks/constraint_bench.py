@@ -1,6 +1,6 @@
 """Benchmark tabulate_constraint: the fast paths (auto) against the general ψ-search.
 
-    .venv/bin/python benchmarks/constraint_bench.py
+    .venv/bin/python -m benchmarks.constraint_bench [--repeat N] [--no-general] [--only PART]
 
 Prints one row per case: best-of-N time per table (auto), node and kink counts, and the
 general ψ-search's time on the same case and the ratio (same run). Asserts nothing.
@@ -16,11 +16,15 @@ passage, table and integration together (:func:`site_passage`).
 
 from __future__ import annotations
 
+import argparse
+import json
 import math
 import time
 from collections.abc import Callable
 from dataclasses import replace
 from functools import partial
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -33,6 +37,8 @@ from sim_core.rail import RailProfile
 from sim_core.roughness import power_law_psd, random_roughness
 from sim_core.wheel import WheelOutline
 from sim_core.wheel_roughness import bundled_measurement, load_wheel_roughness
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 
 
 def _best(fn: Callable[[], ConstraintTable], repeat: int) -> tuple[float, ConstraintTable]:
@@ -97,6 +103,10 @@ def site_rows(repeat: int = 5, general: bool = True) -> list[dict[str, float | s
             "speedup": tg / nxt if tg > 0 else 0.0,
         }
         row.update(site_passage(wheel, rail, length, repeat))
+        # the first wheel on its rail: its table (the rail's round table included) and the
+        # integration, at 160 km/h
+        duration = length / (160 / 3.6)
+        row["first_wheel_passage_rtf"] = duration / (first + float(row["integration_ms"]) * 1e-3)
         rows.append(row)
     return rows
 
@@ -153,8 +163,88 @@ def site_passage(
     }
 
 
-def run(repeat: int = 5, general: bool = True) -> list[dict[str, float | str]]:
-    """Rows: case, auto_ms, nodes, kinks, general_ms, ratio (general/auto; 0 if not measured)."""
+FIG4_FREQUENCY = 280.0
+FIG4_PERIODS = 300
+
+
+def fig4_scenario() -> Any:
+    """The issue's Fig. 4 resonance case as a scenario (CONTRACT.md): ``examples/cosine_hertz.json``
+    (round wheel R = 0.475 m on a = 0.1 mm, λ = 5 cm, Hertz, rigid) at 280 Hz for 300 periods
+    (14 m/s, 15 m of rail, 1.071 s), 20 samples a period."""
+    from schemas import scenario as sc
+
+    data = json.loads((EXAMPLES / "cosine_hertz.json").read_text())
+    data["speed"] = FIG4_FREQUENCY * 0.05
+    data["duration"] = FIG4_PERIODS / FIG4_FREQUENCY
+    data["sample_rate"] = 20 * FIG4_FREQUENCY
+    return sc.Scenario.model_validate(data)
+
+
+def fig4_cli_row(repeat: int = 5) -> dict[str, float | str]:
+    """The Fig. 4 case through the CLI's path (``service.scenario_runner.run_scenario``, as
+    ``railtwin simulate`` runs each scenario of a batch: compiled code loaded, the table made
+    per scenario), best of ``repeat`` (>= 1) of its own ``wall_time`` (tabulation, integration,
+    summaries; not the JSON writing). Peers in the same run: the integration alone on the same
+    table (``simulate_passage``), and the ψ-search's table of the same case (the path before
+    the closed form). The trajectory is chaotic over 300 periods (MODEL.md §7): a table within
+    1e-13 m of another takes a different number of steps; the steps are reported."""
+    from service.physics_inputs import contact_model
+    from service.scenario_runner import build_spec, run_scenario
+
+    scenario = fig4_scenario()
+    run_scenario(scenario)  # warm
+    best = math.inf
+    result = None
+    for _ in range(max(repeat, 1)):
+        result = run_scenario(scenario)
+        assert result.stats is not None
+        best = min(best, result.stats.wall_time)
+    assert result is not None and result.stats is not None
+    w = scenario.wheel
+    contact, _ = contact_model(scenario.contact, scenario.material, radius=w.radius, load=w.load,
+                               mass=w.mass)
+    spec = build_spec(scenario, contact)
+    wheel, rail = WheelOutline.round(w.radius), RailProfile.cosine(1e-4, 0.05)
+    length = spec.speed * spec.duration
+    t_tab, table = _best(partial(tabulate_constraint, wheel, rail, 0.0, length), repeat)
+    best_int = math.inf
+    out = simulate_passage(table, spec)
+    for _ in range(max(repeat, 1)):
+        t0 = time.perf_counter()
+        out = simulate_passage(table, spec)
+        best_int = min(best_int, time.perf_counter() - t0)
+    t_gen, _ = _best(
+        partial(tabulate_constraint, wheel, rail, 0.0, length, method="general"), 1
+    )
+    return {
+        "case": "Fig. 4 through the CLI path: round wheel, cosine 0.1 mm / 5 cm, 300 periods",
+        "cli_wall_ms": best * 1e3,
+        "cli_rtf": spec.duration / best,
+        "table_ms": t_tab * 1e3,
+        "integration_ms": best_int * 1e3,
+        "integration_rtf": spec.duration / best_int,
+        "cli_over_integration": best / best_int,
+        "steps": float(result.stats.steps),
+        "psi_search_table_ms": t_gen * 1e3,
+        "psi_search_over_table": t_gen / t_tab,
+        "rtf_with_psi_search_table": spec.duration / (t_gen + best_int),
+        "integration_steps": float(out.steps),
+    }
+
+
+PARTS = ("tables", "site", "fig4")
+
+
+def run(
+    repeat: int = 5, general: bool = True, only: str | None = None
+) -> list[dict[str, float | str]]:
+    """Rows: case, auto_ms, nodes, kinks, general_ms, ratio (general/auto; 0 if not measured);
+    then the site rows (:func:`site_rows`) and the Fig. 4 CLI row (:func:`fig4_cli_row`).
+    ``only``: one of :data:`PARTS`."""
+    if only == "site":
+        return site_rows(repeat, general)
+    if only == "fig4":
+        return [fig4_cli_row(repeat)]
     w = load_wheel_roughness(bundled_measurement("flat_0p3_01.dat")).to_outline()
     rng = np.random.default_rng(11)
     x = np.arange(0.0, 10.0, 1e-4)
@@ -219,6 +309,13 @@ def run(repeat: int = 5, general: bool = True) -> list[dict[str, float | str]]:
             general,
         ),
         (
+            "round wheel, 15 m, cosine 0.1 mm / 5 cm (Fig. 4: one period, closed form)",
+            WheelOutline.round(0.475),
+            RailProfile.cosine(1e-4, 0.05),
+            15.0,
+            general,
+        ),
+        (
             "round wheel, 10 m sampled rail at 0.1 mm",
             WheelOutline.round(0.475),
             long_rail,
@@ -244,17 +341,34 @@ def run(repeat: int = 5, general: bool = True) -> list[dict[str, float | str]]:
                 "speedup": tg / ta if tg > 0 else 0.0,
             }
         )
-    return rows + site_rows(repeat, general)
+    if only == "tables":
+        return rows
+    return rows + site_rows(repeat, general) + [fig4_cli_row(repeat)]
+
+
+def main(argv: list[str] | None = None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--repeat", type=int, default=5, help="best of N timed calls (default 5)")
+    ap.add_argument("--no-general", action="store_true", help="skip the ψ-search peers")
+    ap.add_argument(
+        "--only", choices=PARTS, default=None, help="one part: tables, site or fig4 (default all)"
+    )
+    args = ap.parse_args(argv)
+    for r in run(args.repeat, not args.no_general, args.only):
+        if "auto_ms" in r:
+            first = float(r.get("first_wheel_ms", float("nan")))
+            print(
+                f"{r['case']!s:60s} first {first:9.2f} ms, auto {float(r['auto_ms']):9.3f} ms, "
+                f"{int(r['nodes']):7d} nodes, {int(r['kinks']):6d} kinks, general "
+                f"{float(r['general_ms']):9.1f} ms, speedup {float(r['speedup']):6.0f}"
+            )
+            extra = {k: v for k, v in r.items() if "passage" in k or k == "first_wheel_rtf"}
+        else:
+            print(r["case"])
+            extra = {k: v for k, v in r.items() if k != "case"}
+        if extra:
+            print("    " + ", ".join(f"{k} {float(v):.4g}" for k, v in extra.items()))
 
 
 if __name__ == "__main__":
-    print(
-        f"{'case':44s} {'first ms':>9s} {'auto ms':>9s} {'nodes':>7s} {'kinks':>6s} "
-        f"{'general ms':>11s} {'speedup':>8s}"
-    )
-    for r in run():
-        first = float(r.get("first_wheel_ms", float("nan")))
-        print(
-            f"{r['case']!s:44s} {first:9.2f} {float(r['auto_ms']):9.2f} {int(r['nodes']):7d} "
-            f"{int(r['kinks']):6d} {float(r['general_ms']):11.1f} {float(r['speedup']):8.0f}"
-        )
+    main()

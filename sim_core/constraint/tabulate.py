@@ -17,6 +17,8 @@ Which method (one module each, all compiled with numba):
   (:mod:`sim_core.constraint.flat_rail`);
 - a round wheel on a polyline rail (sampled, file, dented, step): the envelope of arcs and
   lines in closed form (:mod:`sim_core.constraint.round_polyline`);
+- a round wheel on a cosine gentler than the wheel (|a|k²R <= 0.95): the rail's offset curve
+  in closed form in the contact point, one period (:mod:`sim_core.constraint.round_cosine`);
 - an out-of-round wheel on a flat or gentle cosine rail, an ideal flat on a cosine (its
   chord cut into the rail's crest windows, each in closed form,
   :mod:`sim_core.constraint.flat_cosine`), and a rounded flat or sampled outline on a cosine
@@ -68,6 +70,7 @@ from sim_core.constraint.general import tabulate_general
 from sim_core.constraint.nodes import check_range
 from sim_core.constraint.nodes import resolution as input_resolution
 from sim_core.constraint.polyline import supports_polyline, tabulate_polyline
+from sim_core.constraint.round_cosine import supports_round_cosine, tabulate_round_cosine
 from sim_core.constraint.round_polyline import tabulate_round_polyline
 from sim_core.constraint.table import ConstraintTable
 from sim_core.constraint.wheel_pieces import supports as supports_pieces
@@ -132,6 +135,8 @@ def tabulate_constraint(
         return ideal_flat_on_flat(wheel, a, float(phase), step, resolution)
     if wheel.kind == "round" and rail.kind in ("sampled", "step"):
         return tabulate_round_polyline(R, rail, a, b, dx, resolution)
+    if supports_round_cosine(wheel, rail):
+        return tabulate_round_cosine(wheel, rail, a, b, dx, resolution)
     if supports_pieces(wheel, rail):
         return tabulate_wheel_pieces(wheel, rail, a, b, float(phase), dx, resolution)
     if supports_cosine_hybrid(wheel, rail):

@@ -20,7 +20,7 @@ def warm_up_constraint() -> float:
 
     A long-running process (the streaming service) calls this once at start, before the
     first wheel: no wheel then pays for compilation. Covers the round wheel on flat,
-    cosine, step and sampled rails, the ideal flat on a flat rail, the piece sweep (sampled
+    cosine (offset curve and ψ-search), step and sampled rails, the ideal flat on a flat rail, the piece sweep (sampled
     outline on flat and cosine rails, ideal flat on a cosine, rounded flat on a cosine by its
     certified cells; a partly certified cover runs the same sweep and ψ-search kernels), the polyline sweep (ideal flat, rounded flat and
     sampled outline on a sampled rail, with the round wheel's cached table), the general
