@@ -23,7 +23,8 @@ from typing import Any
 
 import zenoh
 
-from service.physics.port import PassageSimulator
+from service.physics.local import LocalPhysics
+from service.physics.port import PhysicsPort
 from service.physics.rail_store import RailStore, StateMismatchError
 from service.physics.worker import PhysicsPool
 from service.recording.input_journal import InputJournal
@@ -96,16 +97,6 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     return p
 
 
-def make_physics(kind: str, site: Any) -> PassageSimulator:
-    if kind == "stub":
-        from service.physics.stub import StubPhysics
-
-        return StubPhysics(site)
-    from service.physics.site_physics import SitePhysics
-
-    return SitePhysics(site)
-
-
 def one_line(exc: BaseException) -> str:
     """The first sentence of a Zenoh error, without its source locations."""
     text = re.sub(r"\s+at /\S+", "", str(exc)).replace("\n", " ")
@@ -158,12 +149,11 @@ def run(args: argparse.Namespace) -> int:
               "every wheel rolls on the dents of the ones before", flush=True)
         workers = 1
     worker: PhysicsPool | None = None
-    physics: PassageSimulator
+    physics: PhysicsPort
     if args.in_process:
-        physics = make_physics(args.physics, site)
-        warm_up = getattr(physics, "warm_up", None)
-        if warm_up is not None:
-            print(f"railtwin serve: physics warmed up in {warm_up():.1f} s", flush=True)
+        local = LocalPhysics.of(args.physics, site)
+        print(f"railtwin serve: physics warmed up in {local.warm_up():.1f} s", flush=True)
+        physics = local
     else:  # the compiled physics holds the GIL: it runs in a worker process
         store = None
         if not args.no_state:
@@ -190,7 +180,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _serve(args: argparse.Namespace, site: Any, cfg: zenoh.Config, listen: list[str],
-           physics: PassageSimulator) -> int:
+           physics: PhysicsPort) -> int:
     stamp = time.strftime("%Y%m%d-%H%M%S")
     # unique per run, not per second: two services started together keep both logs
     stem = f"railtwin-{site.site_id}-{stamp}-{os.getpid()}{secrets.token_hex(2)}"
@@ -230,7 +220,7 @@ def _serve(args: argparse.Namespace, site: Any, cfg: zenoh.Config, listen: list[
             where = ", ".join(listen) if listen else "(from config)"
             print(f"railtwin serve: site {site.site_id!r} ({site.length:g} m, {site.contact}), "
                   f"listening on {where}; passages on {twin.keys.passage}", flush=True)
-            if twin.diagnoser is not None:
+            if physics.diagnoses:
                 print(f"railtwin serve: diagnosis on, measurements on {twin.keys.measured} "
                       f"(pairing timeout {site.diagnosis.pairing_timeout:g} s)", flush=True)
             if recorder is not None:
