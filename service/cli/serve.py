@@ -9,7 +9,6 @@ Also runnable as ``python -m service.cli.serve ...`` (what the tests do).
 from __future__ import annotations
 
 import argparse
-import hashlib
 import os
 import re
 import secrets
@@ -23,9 +22,10 @@ from typing import Any
 
 import zenoh
 
+from schemas.site import SiteConfig
 from service.physics.local import LocalPhysics
 from service.physics.port import PhysicsPort
-from service.physics.rail_store import RailStore, StateMismatchError
+from service.physics.rail_store import RailStore, StateMismatchError, physics_fingerprint
 from service.physics.worker import PhysicsPool
 from service.recording.input_journal import InputJournal
 from service.recording.mcap_log import DEFAULT_MAX_BYTES, DEFAULT_MAX_SECONDS
@@ -112,11 +112,11 @@ def package_version() -> str:
         return "unknown"
 
 
-def open_state(directory: Path, site: Any) -> RailStore:
-    """The site's state store; refuses one written for another site file or version."""
-    pkg = package_version()
-    digest = hashlib.sha256(site.model_dump_json().encode()).hexdigest()[:16]
-    return RailStore(directory, site.site_id, f"railtwin {pkg}, site file {digest}")
+def open_state(directory: Path, site: SiteConfig) -> RailStore:
+    """The site's state store; refuses one of another site, made with other physics (rail,
+    material, contact law, foundation, dent model) or by a newer railtwin."""
+    return RailStore(directory, site.site_id, physics_fingerprint(site),
+                     written_by=f"railtwin {package_version()}")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -162,6 +162,10 @@ def run(args: argparse.Namespace) -> int:
             except (StateMismatchError, OSError, sqlite3.Error) as exc:
                 print(f"railtwin serve: state: {exc}", file=sys.stderr)
                 return 2
+            if store.migrated_from is not None:
+                print(f"railtwin serve: state {store.path}: migrated from state schema "
+                      f"{store.migrated_from}; its rail is taken as made with the physics of "
+                      f"{args.site} as it is now", flush=True)
             print(f"railtwin serve: state {store.path} ({store.applied_count()} passages "
                   "applied before)", flush=True)
         worker = PhysicsPool(site, args.physics, workers=workers, budget=args.passage_budget,
