@@ -25,7 +25,7 @@ PACKAGES_MAY_IMPORT: dict[str, set[str]] = {
 
 SERVICE_MAY_IMPORT: dict[str, set[str]] = {
     "wire": {"wire"},
-    "recording": {"recording"},
+    "recording": {"recording", "wire"},
     "physics": {"physics", "wire"},
     "twin": {"twin", "wire", "recording", "physics.port"},
     "clients": {"clients", "wire", "recording", "physics"},

@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import sys
 import tempfile
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeAlias
 
 EXIT_OK = 0
 EXIT_FAILURE = 1
@@ -23,6 +24,10 @@ exit status:
        message names the offending field)
   130  interrupted (Ctrl-C)
 """
+
+
+SubParsers: TypeAlias = "argparse._SubParsersAction[argparse.ArgumentParser]"
+"""What ``register(subparsers)`` of a subcommand module is given."""
 
 
 class CommandError(Exception):

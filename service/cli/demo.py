@@ -20,8 +20,8 @@ import subprocess
 import sys
 import tempfile
 from pathlib import Path
-from typing import Any
 
+from service.cli.common import SubParsers
 from service.cli.service_process import ServiceProcess
 from service.wire.site import load_site
 from service.wire.zenoh_session import free_tcp_endpoint
@@ -41,7 +41,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="where the MCAP log and the .rrd go (default recordings/)")
 
 
-def register(subparsers: Any) -> argparse.ArgumentParser:
+def register(subparsers: SubParsers) -> argparse.ArgumentParser:
     """Add ``demo`` to the ``railtwin`` CLI's subparsers."""
     p: argparse.ArgumentParser = subparsers.add_parser(
         "demo", help="the twin on loopback with a sample train streamed through it (make demo)",

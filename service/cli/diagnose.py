@@ -15,12 +15,19 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import Any
 
-from service.cli.common import EXIT_CODES_HELP, EXIT_FAILURE, EXIT_OK, EXIT_USAGE, CommandError
+from schemas.diagnosis import Diagnosis
+from service.cli.common import (
+    EXIT_CODES_HELP,
+    EXIT_FAILURE,
+    EXIT_OK,
+    EXIT_USAGE,
+    CommandError,
+    SubParsers,
+)
 
 
-def register(subparsers: Any) -> None:
+def register(subparsers: SubParsers) -> None:
     p = subparsers.add_parser(
         "diagnose",
         help="diagnose a wheel flat from a measured passage",
@@ -38,9 +45,9 @@ def register(subparsers: Any) -> None:
     p.set_defaults(func=cmd_diagnose)
 
 
-def table(d: Any) -> str:
+def table(d: Diagnosis) -> str:
     kn = 1e-3
-    rows = [("verdict", d.verdict)]
+    rows: list[tuple[str, str]] = [("verdict", d.verdict)]
     if d.flat is None:
         rows.append(("flat", "none found"))
     else:

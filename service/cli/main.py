@@ -21,7 +21,7 @@ import sys
 import traceback
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import IO, Any, NoReturn
+from typing import IO, Any, NoReturn, cast
 
 from service.cli import clients, demo, diagnose, recover, replay, serve
 from service.cli.common import (
@@ -31,6 +31,7 @@ from service.cli.common import (
     EXIT_OK,
     EXIT_USAGE,
     CommandError,
+    SubParsers,
     read_json,
     write_atomic,
 )
@@ -59,7 +60,7 @@ batch mode (several scenarios, --out-dir DIR):
 """
 
 
-def register_simulate(subparsers: Any) -> None:
+def register_simulate(subparsers: SubParsers) -> None:
     p = subparsers.add_parser(
         "simulate",
         help="run scenario files and write their results",
@@ -363,7 +364,7 @@ def summary_table(result: Any, source: str, out: str | None) -> str:
 # --- schema ---------------------------------------------------------------------------------
 
 
-def register_schema(subparsers: Any) -> None:
+def register_schema(subparsers: SubParsers) -> None:
     p = subparsers.add_parser(
         "schema",
         help="print the JSON Schemas of the contract",
@@ -399,7 +400,7 @@ def cmd_schema(args: argparse.Namespace) -> int:
 # --- figures --------------------------------------------------------------------------------
 
 
-def register_figures(subparsers: Any) -> None:
+def register_figures(subparsers: SubParsers) -> None:
     p = subparsers.add_parser(
         "figures",
         help="draw the paper's figures (needs matplotlib)",
@@ -470,7 +471,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument(
         "--debug", action="store_true", help="print the traceback of runtime failures"
     )
-    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    # _Parser is an ArgumentParser: the subcommands' register() take the plain type
+    subparsers = cast(SubParsers, parser.add_subparsers(dest="command", metavar="COMMAND",
+                                                        parser_class=_Parser))
     subparsers.required = True
     for register in BUILTIN_COMMANDS:
         register(subparsers)

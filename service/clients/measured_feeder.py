@@ -29,7 +29,6 @@ from schemas.diagnosis import Diagnosis, MeasuredPassage
 from schemas.messages import ServiceError
 from service.clients.feeder import load_train, wait_matching
 from service.clients.synthesize import measure, passage_tread
-from service.physics.diagnosis import Diagnoser
 from service.wire.encoding import json_encoding
 from service.wire.keyspace import SiteKeys
 from service.wire.site import load_site
@@ -81,6 +80,8 @@ def run(a: argparse.Namespace) -> int:
         payloads = [MeasuredPassage.model_validate(d)
                     for d in json.loads(a.load.read_text(encoding="utf-8"))]
     else:
+        from service.physics.diagnosis import Diagnoser  # the physics, only when it is used
+
         diagnoser = Diagnoser(site)
         wheels = [w.passage for w in train.wheels if w.passage.axle_index in set(a.axles)]
         print(f"measured: generating the site's measurement of {len(wheels)} wheels "

@@ -15,22 +15,26 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from schemas.messages import WheelPassage
 from schemas.site import SiteConfig
-from service.physics.diagnosis import Diagnoser
-from service.physics.site_physics import wheel_outline
 from service.wire.site import load_site
-from sim_core.diagnosis.forward import Flat, MeasuredTread, Tread, damping_for_ratio
-from sim_core.diagnosis.synthetic import Perturbations, SyntheticMeasurement, synthetic_measurement
+
+if TYPE_CHECKING:  # the physics (numba, scipy) is imported when used: ``railtwin --help`` is quick
+    from service.physics.diagnosis import Diagnoser
+    from sim_core.diagnosis.forward import Tread
+    from sim_core.diagnosis.synthetic import SyntheticMeasurement
 
 
 def measure(site: SiteConfig, passage: WheelPassage, tread: Tread | None, *, seed: int,
             noise: float = 0.03, roughness: float = 3e-6, damping_ratio: float | None = 0.15,
             speed_error: float = 0.0, diagnoser: Diagnoser | None = None) -> SyntheticMeasurement:
     """What the site would measure of ``passage`` with ``tread`` (None: round)."""
+    from service.physics.diagnosis import Diagnoser
+    from sim_core.diagnosis.forward import damping_for_ratio
+    from sim_core.diagnosis.synthetic import Perturbations, synthetic_measurement
+
     d = diagnoser or Diagnoser(site)
     wheel = d.wheel(passage)
     damping = None
@@ -46,6 +50,9 @@ def measure(site: SiteConfig, passage: WheelPassage, tread: Tread | None, *, see
 
 def passage_tread(passage: WheelPassage) -> Tread | None:
     """The passage's own outline as a tread (None if round)."""
+    from service.physics.site_physics import wheel_outline
+    from sim_core.diagnosis.forward import MeasuredTread
+
     if passage.outline.kind == "round":
         return None
     return MeasuredTread(wheel_outline(passage), passage.phase)
@@ -75,6 +82,10 @@ def main(argv: list[str] | None = None) -> int:
 
 def run(a: argparse.Namespace) -> int:
     """Write the synthetic measured force of one passage as CSV (t_s,force_N)."""
+    import numpy as np
+
+    from sim_core.diagnosis.forward import Flat
+
     site = load_site(a.site)
     passage = WheelPassage.model_validate_json(a.passage.read_text(encoding="utf-8"))
     R = passage.radius

@@ -20,15 +20,15 @@ answered without asking the child.
 from __future__ import annotations
 
 import contextlib
+import logging
 import multiprocessing
 import os
 import queue
-import signal
 import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from schemas.diagnosis import MeasuredPassage
 from schemas.messages import PassageResult, RailState, WheelPassage
@@ -40,12 +40,14 @@ from service.physics.port import (
     DiagnosisOutcome,
     MeasurementError,
     PhysicsKind,
+    RailSnapshot,
     Series,
     Simulated,
     SiteModel,
     WorkerCrashedError,
 )
 from service.physics.rail_store import RailStore
+from service.wire.child_process import ignore_stop_signals, start_shielded
 from service.wire.encoding import RESULT_ARRAYS, series_json
 from sim_core.rail import RailProfile
 
@@ -56,6 +58,10 @@ if TYPE_CHECKING:
     from service.physics.diagnosis import Diagnoser
     from service.physics.site_physics import SitePhysics
 
+log = logging.getLogger("railtwin.physics")
+
+T = TypeVar("T")
+
 START_TIMEOUT = 600.0
 """s a new worker may take to import, compile (first run without a cache) and warm up."""
 
@@ -63,9 +69,10 @@ START_TIMEOUT = 600.0
 # --- the child ---------------------------------------------------------------------------------
 
 
-def _child_main(site: SiteConfig, kind: PhysicsKind, conn: Connection, snapshot: Any,
+def _child_main(site: SiteConfig, kind: PhysicsKind, conn: Connection,
+                snapshot: RailSnapshot | None,
                 parent_pid: int) -> None:
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the service stops us, not the terminal
+    ignore_stop_signals()  # the service stops us (through the pipe), not the terminal
     exit_when_orphaned(parent_pid)  # even while compiling, when the pipe is not read
     from pydantic import ValidationError
 
@@ -135,6 +142,10 @@ def _child_main(site: SiteConfig, kind: PhysicsKind, conn: Connection, snapshot:
 # --- the twin's side ---------------------------------------------------------------------------
 
 
+class StartCancelledError(WorkerCrashedError):
+    """The service was told to stop while a worker was starting."""
+
+
 class ProcessPhysics:
     """One ``SiteModel`` (and the diagnosis) in a worker process.
 
@@ -156,7 +167,9 @@ class ProcessPhysics:
         self._proc: BaseProcess | None = None
         self._conn: Connection | None = None
         self._lock = threading.Lock()
-        self._snapshot: Any = None
+        self.cancelled = threading.Event()
+        """Set (``PhysicsPool.cancel``) to abandon a start under way (the service stops)."""
+        self._snapshot: RailSnapshot | None = None
         self._state: RailState | None = None
         self._done = 0
         if store is not None:  # go on from the rail as the last run left it
@@ -186,13 +199,19 @@ class ProcessPhysics:
         proc = self._ctx.Process(target=_child_main, name="railtwin-physics",
                                  args=(self.site, self.kind, child, self._snapshot, os.getpid()),
                                  daemon=True)
-        proc.start()
+        start_shielded(proc)  # a signal to the group while it starts is not its death
         child.close()
         self._proc, self._conn = proc, parent
         parent.send(("warm_up", self.warm_up_enabled))
-        if not parent.poll(self.start_timeout):
-            self._kill()
-            raise RuntimeError(f"the physics worker did not start within {self.start_timeout:g} s")
+        deadline = time.monotonic() + self.start_timeout
+        while not parent.poll(0.1):  # in slices: a stop during warm-up is heard
+            if self.cancelled.is_set():
+                self._kill()
+                raise StartCancelledError("the physics worker's start was cancelled")
+            if time.monotonic() > deadline:
+                self._kill()
+                raise RuntimeError(
+                    f"the physics worker did not start within {self.start_timeout:g} s")
         try:
             reply = parent.recv()
         except (EOFError, OSError) as exc:
@@ -225,12 +244,16 @@ class ProcessPhysics:
                 if not conn.poll(self.budget):
                     self._kill()  # a new worker is started for the next call
                     self.restarts += 1
+                    log.warning("%s: over the budget of %g s; the worker was killed and is "
+                                "restarted", what, self.budget)
                     raise BudgetExceededError(what, self.budget)
                 reply: tuple[Any, ...] = conn.recv()
             except (EOFError, OSError, BrokenPipeError) as exc:
                 code = self._proc.exitcode if self._proc is not None else None
                 self._kill()
                 self.restarts += 1
+                log.warning("%s: the physics worker died (exit code %s); it is restarted",
+                            what, code)
                 raise WorkerCrashedError(f"{what}: the physics worker died (exit code {code}); "
                                     "it was restarted") from exc
         kind = reply[0]
@@ -263,11 +286,10 @@ class ProcessPhysics:
             self._snapshot = (profile, revision, self._done)
         if self.store is not None:  # committed before it is published
             snap = self._snapshot
-            profile = snap[0] if dented is not None and snap is not None else None
-            revision = snap[1] if snap is not None else 0
-            self.store.commit(passage.passage_id, revision,
-                              None if profile is None else profile.x,
-                              None if profile is None else profile.y)
+            dented_rail = snap[0] if dented is not None and snap is not None else None
+            self.store.commit(passage.passage_id, snap[1] if snap is not None else 0,
+                              None if dented_rail is None else dented_rail.x,
+                              None if dented_rail is None else dented_rail.y)
         return result, data, series
 
     def already_applied(self, passage_id: str) -> int | None:
@@ -361,7 +383,12 @@ class PhysicsPool:
         others load it rather than all compiling at once); returns the longest warm-up, s."""
         return max(w.start() for w in self.workers)
 
-    def _with_worker(self, call: Callable[[ProcessPhysics], Any]) -> Any:
+    def cancel(self) -> None:
+        """Abandon the starts under way (safe from a signal handler: it only sets flags)."""
+        for w in self.workers:
+            w.cancelled.set()
+
+    def _with_worker(self, call: Callable[[ProcessPhysics], T]) -> T:
         worker = self._idle.get()
         try:
             return call(worker)

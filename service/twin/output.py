@@ -7,6 +7,7 @@ one ``Output``; it counts the errors (for ``Health``).
 from __future__ import annotations
 
 import base64
+import logging
 import threading
 import time
 
@@ -31,6 +32,10 @@ from service.twin.errors import service_error
 from service.twin.inbound import Inbound
 from service.wire.encoding import json_encoding
 from service.wire.keyspace import SiteKeys
+
+log = logging.getLogger("railtwin.twin")
+
+log = logging.getLogger("railtwin.twin")
 
 JOURNALED_OUTPUTS: tuple[type[BaseModel], ...] = (PassageResult, Diagnosis, ServiceError)
 """Outputs also appended to the journal when published (the series are in the result)."""
@@ -71,6 +76,10 @@ class Output:
         with self._counts:  # the callbacks, the worker and the publisher all report errors
             self.errors += 1
             self.last_error = error
+        # the twin's own trouble is the operator's; a bad input is its sender's
+        level = logging.WARNING if error.kind in ("simulation_failed", "overloaded") else \
+            logging.DEBUG
+        log.log(level, "%s (passage %s): %s", error.kind, error.passage_id, error.message)
         self.put(self.keys.error, self.keys.error, ServiceError, error.model_dump_json().encode())
 
     def error(self, item: Inbound, kind: ErrorKind, message: str, *, field: str | None = None,

@@ -82,6 +82,7 @@ class Twin:
         self._started_mono = time.monotonic()
         self._worker = threading.Thread(target=self._work, name="railtwin-worker", daemon=True)
         self._declared: list[Any] = []
+        self._stop_by: float | None = None
 
     @property
     def passages_done(self) -> int:
@@ -112,8 +113,12 @@ class Twin:
             s.liveliness().declare_token(self.keys.alive),
         ]
 
-    def stop(self) -> None:
-        """Stop taking input, finish what is queued (paced output at once), close the log."""
+    def stop(self, deadline: float | None = None) -> None:
+        """Stop taking input, finish what is queued (paced output at once), close the log.
+
+        ``deadline`` (monotonic s): inputs still queued then are not served; each gets an
+        ``overloaded`` error (it is in the journal all the same)."""
+        self._stop_by = deadline
         for d in reversed(self._declared):
             with contextlib.suppress(Exception):  # the session may already be closing
                 d.undeclare()
@@ -136,6 +141,8 @@ class Twin:
             item = self.intake.next(timeout)
             if isinstance(item, Stop):
                 return
+            if item is not None and self._too_late(item):
+                continue
             if item is not None:
                 try:
                     self.serve(item)
@@ -143,6 +150,15 @@ class Twin:
                     self.output.error(item, "simulation_failed",
                                       f"internal error: {type(exc).__name__}: {exc}")
             self.pairing.expire()
+
+    def _too_late(self, item: Inbound) -> bool:
+        """Past the stop deadline: ``item`` is answered, not served."""
+        if self._stop_by is None or time.monotonic() < self._stop_by:
+            return False
+        what = "measurement" if item.key == self.keys.measured else "passage"
+        self.output.error(item, "overloaded",
+                          f"{what} dropped: the service stopped before its turn came")
+        return True
 
     def serve(self, item: Inbound) -> None:
         """One input off the queue: a measured passage, or a passage."""
