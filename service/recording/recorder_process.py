@@ -43,6 +43,7 @@ from pydantic import BaseModel
 
 from schemas.diagnosis import Diagnosis
 from schemas.messages import PassageResult, RailState
+from service.recording import foxglove
 from service.wire.child_process import ignore_stop_signals, start_shielded
 
 
@@ -306,6 +307,11 @@ def _write(item: tuple[Any, ...], models: dict[str, type[BaseModel]], mcap: Any,
     if kind == "m" and mcap is not None:
         topic, model_name, data, log_time_ns, publish_time_ns = rest
         mcap.write(topic, models[model_name], data, log_time_ns, publish_time_ns)
+        entry = foxglove.log_entry(model_name, data, log_time_ns)
+        if entry is not None:  # errors and verdicts in Foxglove's Log panel too
+            mcap.write(foxglove.log_topic(topic), foxglove.Log,
+                       entry.model_dump_json().encode(), log_time_ns,
+                       schema_name=foxglove.SCHEMA_NAME)
     elif kind == "p" and rerun is not None:
         rerun.log_passage(PassageResult.model_validate_json(rest[0]))
     elif kind == "s" and rerun is not None:
