@@ -59,7 +59,7 @@ test: $(STAMP)
 	echo "make test: all checks passed"
 
 demo: $(STAMP)
-	$(BIN)/python -m service.cli.demo
+	$(BIN)/python -m service.cli demo
 
 bench: $(STAMP)
 	$(BIN)/python -m benchmarks.run_all
@@ -71,7 +71,7 @@ validate: $(STAMP)
 	$(BIN)/python -m validation.diagnosis_validation
 
 figures: $(STAMP)
-	$(BIN)/railtwin figures --out figures/
+	$(BIN)/python -m service.cli figures --out figures/
 
 clean:
 	rm -rf $(VENV)/numba-cache .pytest_cache .mypy_cache .ruff_cache .hypothesis recordings/demo-result.json

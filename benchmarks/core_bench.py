@@ -531,7 +531,7 @@ def _fmt_s(x: float) -> str:
 
 
 def markdown(res: dict[str, Any]) -> str:
-    """The tables of a ``run()`` result, ready for the README."""
+    """The tables of a ``run()`` result, ready for docs/benchmarks.md."""
     lines = [
         f"Simulation core, rtol = {res['rtol']:g} unless the case says otherwise (SciPy: same "
         f"rtol and atol), best of "

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -79,11 +79,15 @@ TRANSITION_KINDS = tuple(e.label for e in Event)
 """Names of the transition codes 0..3 the integrator reports (``integrate_types.Event``)."""
 
 
+FoundationKind = Literal["rigid", "compliant"]
+"""Rigid track, or a mass on a spring and damper (MODEL.md (6.1))."""
+
+
 @dataclass(frozen=True)
 class Foundation:
     """Rigid (``mass``/``stiffness`` unused) or compliant foundation of MODEL.md (6.1)."""
 
-    kind: str = "rigid"
+    kind: FoundationKind = "rigid"
     mass: float = 0.0
     stiffness: float = 0.0
     damping: float = 0.0

@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal
 
 import numba
 import numpy as np
@@ -37,7 +38,10 @@ RAIL_COSINE = 1
 RAIL_STEP = 2
 RAIL_SAMPLED = 3
 
-_KIND_CODES = {"flat": RAIL_FLAT, "cosine": RAIL_COSINE, "step": RAIL_STEP, "sampled": RAIL_SAMPLED}
+RailKind = Literal["flat", "cosine", "step", "sampled"]
+"""The kinds of rail profile (CONTRACT.md)."""
+
+_KIND_CODES: dict[str, int] = {"flat": RAIL_FLAT, "cosine": RAIL_COSINE, "step": RAIL_STEP, "sampled": RAIL_SAMPLED}
 
 
 def _empty() -> NDArray[np.float64]:
@@ -62,7 +66,7 @@ class RailProfile:
         x, y: the samples of a sampled profile (m), x strictly increasing.
     """
 
-    kind: str
+    kind: RailKind
     amplitude: float = 0.0
     wavelength: float = 0.0
     step_height: float = 0.0

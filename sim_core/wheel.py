@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Literal
 
 import numba
 import numpy as np
@@ -38,7 +39,10 @@ WHEEL_IDEAL_FLAT = 1
 WHEEL_ROUNDED_FLAT = 2
 WHEEL_SAMPLED = 3
 
-_KIND_CODES = {
+WheelKind = Literal["round", "ideal_flat", "rounded_flat", "sampled"]
+"""The kinds of wheel outline (CONTRACT.md)."""
+
+_KIND_CODES: dict[str, int] = {
     "round": WHEEL_ROUND,
     "ideal_flat": WHEEL_IDEAL_FLAT,
     "rounded_flat": WHEEL_ROUNDED_FLAT,
@@ -73,7 +77,7 @@ class WheelOutline:
         offsets: sampled outline: r(θ) - R at ``theta`` (m).
     """
 
-    kind: str
+    kind: WheelKind
     radius: float
     flat_length: float = 0.0
     flat_depth: float = 0.0

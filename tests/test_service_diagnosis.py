@@ -28,9 +28,10 @@ from service.cli.service_process import ServiceProcess
 from service.clients.feeder import declare_passage_publisher, wait_matching
 from service.physics.diagnosis import Diagnoser
 from service.physics.site_physics import SitePhysics
+from service.recording import foxglove
 from service.recording.mcap_log import LoggedMessage, decode, read_log
 from service.recording.rerun_recording import entities
-from service.twin.twin import json_encoding
+from service.wire.encoding import json_encoding
 from service.wire.keyspace import SiteKeys
 from service.wire.site import load_site
 from service.wire.zenoh_session import build_config, free_tcp_endpoint
@@ -231,6 +232,14 @@ def test_mcap_logs_measurements_and_diagnoses(run: Run) -> None:
                                                  run.out.diagnoses.items()}
     assert all(isinstance(decode(m), MeasuredPassage) for m in run.logged
                if m.topic == f"{prefix}/measured")
+    # every verdict and every error again in Foxglove's Log panel, at its verdict's level
+    levels = {"ok": foxglove.INFO, "watch": foxglove.INFO, "inspect": foxglove.WARNING,
+              "remove": foxglove.ERROR}
+    notes = [decode(m) for m in run.logged if m.topic == f"{prefix}/log"]
+    assert len(notes) == topics[f"{prefix}/diagnosis"] + topics[f"{prefix}/error"]
+    for d in logged:
+        (note,) = [n for n in notes if n.message.startswith(f"passage {d.passage_id}: ")]
+        assert note.level == levels[d.verdict] and d.verdict in note.message
 
 
 def test_rrd_draws_the_diagnoses(run: Run) -> None:

@@ -68,3 +68,24 @@ def test_rotation_by_size(tmp_path: Path) -> None:
     log.close()
     assert len(log.files) > 1
     assert [m.log_time_ns for m in read_log(log.files)] == list(range(40))
+
+
+def test_errors_and_verdicts_also_go_to_a_foxglove_log_channel(tmp_path: Path) -> None:
+    from service.recording import foxglove
+
+    err = ServiceError(site_id="s", kind="simulation_failed", message="over budget",
+                       field=None, passage_id="p7", received_at=1.0)
+    entry = foxglove.log_entry("ServiceError", err.model_dump_json().encode(), 1_500_000_001)
+    assert entry is not None
+    assert (entry.timestamp.sec, entry.timestamp.nsec) == (1, 500_000_001)
+    assert entry.level == foxglove.ERROR and "p7" in entry.message
+    assert "over budget" in entry.message
+    assert foxglove.log_entry("WheelPassage", PASSAGE.model_dump_json().encode(), 0) is None
+    log = McapLog(tmp_path, "run")
+    log.write(foxglove.log_topic("railtwin/s/error"), foxglove.Log,
+              entry.model_dump_json().encode(), 20, schema_name=foxglove.SCHEMA_NAME)
+    log.close()
+    (m,) = list(read_log(log.files))
+    assert m.topic == "railtwin/s/log" and m.schema_name == "foxglove.Log"
+    logged = decode(m)
+    assert isinstance(logged, foxglove.Log) and logged.level == foxglove.ERROR

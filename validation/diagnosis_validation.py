@@ -11,7 +11,7 @@ noise 2-4 % of P, 1-5 µm of unknown rail roughness, speed off by up to ±1 %, a
 4th-order measuring chain at 10 kHz. Then the real measured treads bundled in
 ``sim_core/data`` (CC BY 4.0) are rolled over the same kind of site.
 
-Prints the README's tables (markdown) and writes every case to ``--out``.
+Prints the validation tables of docs/benchmarks.md (markdown) and writes every case to ``--out``.
 """
 
 from __future__ import annotations

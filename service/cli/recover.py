@@ -3,7 +3,7 @@
     railtwin recover LOG.mcap [LOG.mcap ...] [RUN-inputs.journal] --out FIXED.mcap
 
 Keeps every complete message (everything up to the last flushed chunk: the twin flushes
-at least once a second), in log-time order, with its channel and JSON Schema, and
+at least every 0.5 s), in log-time order, with its channel and JSON Schema, and
 writes a finished file that ``make_reader``, Foxglove and ``railtwin replay`` read.
 Give the run's ``-inputs.journal`` too: every input the twin received is in it (written
 before the input was queued), so the inputs the recorder never wrote are added back.
@@ -16,12 +16,18 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import Any
 
-from service.cli.main import EXIT_CODES_HELP, EXIT_FAILURE, EXIT_OK, EXIT_USAGE, CommandError
+from service.cli.common import (
+    EXIT_CODES_HELP,
+    EXIT_FAILURE,
+    EXIT_OK,
+    EXIT_USAGE,
+    CommandError,
+    SubParsers,
+)
 
 
-def register(subparsers: Any) -> None:
+def register(subparsers: SubParsers) -> None:
     p = subparsers.add_parser(
         "recover", help="repair MCAP logs cut short by a crash",
         description=__doc__.split("\n\n")[0] + "\n\n" + __doc__.split("\n\n")[2],

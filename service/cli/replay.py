@@ -16,8 +16,8 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-from typing import Any
 
+from service.cli.common import SubParsers
 from service.clients.replay import ReplayError, ReplayPlan, plan_replay, read_logs, replay
 from service.recording.mcap_recover import RecoveryReport
 from service.wire.zenoh_session import DEFAULT_ENDPOINT, build_config, open_session
@@ -48,7 +48,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="say what would be sent, and send nothing")
 
 
-def register(subparsers: Any) -> argparse.ArgumentParser:
+def register(subparsers: SubParsers) -> argparse.ArgumentParser:
     """Add ``replay`` to the ``railtwin`` CLI's subparsers."""
     p: argparse.ArgumentParser = subparsers.add_parser(
         "replay", help="republish the inputs of an MCAP log onto Zenoh",

@@ -9,7 +9,7 @@ Also runnable as ``python -m service.cli.serve ...`` (what the tests do).
 from __future__ import annotations
 
 import argparse
-import hashlib
+import logging
 import os
 import re
 import secrets
@@ -23,9 +23,13 @@ from typing import Any
 
 import zenoh
 
-from service.physics.port import PassageSimulator
-from service.physics.rail_store import RailStore, StateMismatchError
-from service.physics.worker import PhysicsPool
+from schemas.site import SiteConfig
+from service.cli import logs
+from service.cli.common import SubParsers
+from service.physics.local import LocalPhysics
+from service.physics.port import PhysicsPort
+from service.physics.rail_store import RailStore, StateMismatchError, physics_fingerprint
+from service.physics.worker import PhysicsPool, StartCancelledError
 from service.recording.input_journal import InputJournal
 from service.recording.mcap_log import DEFAULT_MAX_BYTES, DEFAULT_MAX_SECONDS
 from service.recording.recorder_process import ProcessRecorder, RecordingPlan
@@ -33,6 +37,8 @@ from service.twin.twin import Twin
 from service.wire.limits import DEFAULT_PASSAGE_BUDGET, site_problem
 from service.wire.site import SiteFileError, load_site
 from service.wire.zenoh_session import DEFAULT_ENDPOINT, build_config, open_session
+
+log = logging.getLogger("railtwin.serve")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -69,6 +75,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--passage-budget", type=float, default=DEFAULT_PASSAGE_BUDGET, metavar="S",
                    help="wall-time budget of one passage or diagnosis in the physics worker; "
                         f"past it the worker is restarted (default {DEFAULT_PASSAGE_BUDGET:g} s)")
+    p.add_argument("--stop-timeout", type=float, default=10.0, metavar="S",
+                   help="on SIGTERM/SIGINT, seconds to go on serving the inputs already queued; "
+                        "those still queued then get an 'overloaded' error (default 10)")
     p.add_argument("--state", type=Path, default=None, metavar="DIR",
                    help="where the site's rail state and applied passage ids persist "
                         "(SQLite <site_id>.sqlite; default RECORDINGS/state, i.e. "
@@ -79,12 +88,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="physics worker processes (default 1); passages of an elastic site "
                         "(hertz, johnson) are simulated N at a time and published in order; a "
                         "hertz_plastic site always has one")
+    logs.add_arguments(p)
     p.add_argument("--physics", choices=("sim_core", "stub"), default="sim_core",
-                   help=argparse.SUPPRESS)
+                   help="sim_core: the site's own physics (default); stub: an instant "
+                        "closed-form stand-in for plumbing tests and overhead measurements "
+                        "(its numbers are not physics; no diagnosis)")
     p.add_argument("--in-process", action="store_true", help=argparse.SUPPRESS)
 
 
-def register(subparsers: Any) -> argparse.ArgumentParser:
+def register(subparsers: SubParsers) -> argparse.ArgumentParser:
     """Add ``serve`` to the ``railtwin`` CLI's subparsers."""
     p: argparse.ArgumentParser = subparsers.add_parser(
         "serve", help="run the streaming twin of a site over Zenoh",
@@ -94,16 +106,6 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     add_arguments(p)
     p.set_defaults(func=run)
     return p
-
-
-def make_physics(kind: str, site: Any) -> PassageSimulator:
-    if kind == "stub":
-        from service.physics.stub import StubPhysics
-
-        return StubPhysics(site)
-    from service.physics.site_physics import SitePhysics
-
-    return SitePhysics(site)
 
 
 def one_line(exc: BaseException) -> str:
@@ -121,76 +123,112 @@ def package_version() -> str:
         return "unknown"
 
 
-def open_state(directory: Path, site: Any) -> RailStore:
-    """The site's state store; refuses one written for another site file or version."""
-    pkg = package_version()
-    digest = hashlib.sha256(site.model_dump_json().encode()).hexdigest()[:16]
-    return RailStore(directory, site.site_id, f"railtwin {pkg}, site file {digest}")
+def open_state(directory: Path, site: SiteConfig) -> RailStore:
+    """The site's state store; refuses one of another site, made with other physics (rail,
+    material, contact law, foundation, dent model) or by a newer railtwin."""
+    return RailStore(directory, site.site_id, physics_fingerprint(site),
+                     written_by=f"railtwin {package_version()}")
 
 
 def run(args: argparse.Namespace) -> int:
     """Serve until SIGINT/SIGTERM; exit status 0 on a clean stop, 2 on a bad site file,
-    1 when the Zenoh session cannot be opened (e.g. the port is taken)."""
+    1 when the Zenoh session cannot be opened (e.g. the port is taken).
+
+    The signals are handled from the start: one during the warm-up abandons it, one during
+    the service stops it (``--stop-timeout``)."""
+    logs.configure(args.log_level, args.log_json)
+    stop = threading.Event()
+    pools: list[PhysicsPool] = []
+
+    def on_signal(signum: int, _frame: Any) -> None:
+        stop.set()
+        for pool in pools:  # a start under way is abandoned; no worker restarts from now on
+            pool.cancel()
+
+    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        return _run(args, stop, pools)
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
+def _run(args: argparse.Namespace, stop: threading.Event, pools: list[PhysicsPool]) -> int:
     try:
         site = load_site(args.site)
     except SiteFileError as exc:
-        print(f"railtwin serve: {exc}", file=sys.stderr)
+        log.error("%s", exc)
         return 2
     problem = site_problem(site)
     if problem is not None:
-        print(f"railtwin serve: {args.site}: invalid site: {problem}", file=sys.stderr)
+        log.error(f"{args.site}: invalid site: {problem}")
         return 2
     if not args.keep_gb >= 0:
-        print("railtwin serve: --keep-gb must be >= 0", file=sys.stderr)
+        log.error("--keep-gb must be >= 0")
         return 2
     if not args.passage_budget > 0:
-        print("railtwin serve: --passage-budget must be > 0", file=sys.stderr)
+        log.error("--passage-budget must be > 0")
+        return 2
+    if not args.stop_timeout >= 0:
+        log.error("--stop-timeout must be >= 0")
         return 2
     listen = args.listen or ([] if (args.zenoh_config or args.connect) else [DEFAULT_ENDPOINT])
     cfg = build_config(listen=listen, connect=args.connect, config_file=args.zenoh_config,
                        multicast_scouting=args.multicast_scouting)
     if args.workers < 1:
-        print("railtwin serve: --workers must be >= 1", file=sys.stderr)
+        log.error("--workers must be >= 1")
         return 2
     workers = args.workers
     if workers > 1 and site.contact == "hertz_plastic":
-        print(f"railtwin serve: one physics worker, not {workers}: on a hertz_plastic site "
-              "every wheel rolls on the dents of the ones before", flush=True)
+        log.info(f"one physics worker, not {workers}: on a hertz_plastic site "
+              "every wheel rolls on the dents of the ones before")
         workers = 1
     worker: PhysicsPool | None = None
-    physics: PassageSimulator
+    physics: PhysicsPort
     if args.in_process:
-        physics = make_physics(args.physics, site)
-        warm_up = getattr(physics, "warm_up", None)
-        if warm_up is not None:
-            print(f"railtwin serve: physics warmed up in {warm_up():.1f} s", flush=True)
+        local = LocalPhysics.of(args.physics, site)
+        log.info(f"physics warmed up in {local.warm_up():.1f} s")
+        physics = local
     else:  # the compiled physics holds the GIL: it runs in a worker process
         store = None
         if not args.no_state:
             try:
                 store = open_state(args.state or args.recordings / "state", site)
             except (StateMismatchError, OSError, sqlite3.Error) as exc:
-                print(f"railtwin serve: state: {exc}", file=sys.stderr)
+                log.error(f"state: {exc}")
                 return 2
-            print(f"railtwin serve: state {store.path} ({store.applied_count()} passages "
-                  "applied before)", flush=True)
+            if store.migrated_from is not None:
+                log.info(f"state {store.path}: migrated from state schema "
+                      f"{store.migrated_from}; its rail is taken as made with the physics of "
+                      f"{args.site} as it is now")
+            log.info(f"state {store.path} ({store.applied_count()} passages "
+                  "applied before)")
         worker = PhysicsPool(site, args.physics, workers=workers, budget=args.passage_budget,
                              store=store)
-        seconds = worker.start()
+        pools.append(worker)
+        try:
+            seconds = worker.start()
+        except StartCancelledError:
+            worker.close()
+            log.info("stopped during the physics warm-up")
+            return 0
         physics = worker
         pids = ", ".join(str(p) for p in worker.pids)
-        print(f"railtwin serve: physics warmed up in {seconds:.1f} s (worker process"
+        log.info(f"physics warmed up in {seconds:.1f} s (worker process"
               f"{'es' if workers > 1 else ''} {pids}, budget {args.passage_budget:g} s a "
-              "passage)", flush=True)
+              "passage)")
     try:
-        return _serve(args, site, cfg, listen, physics)
+        if stop.is_set():
+            log.info("stopped before serving")
+            return 0
+        return _serve(args, site, cfg, listen, physics, stop)
     finally:
         if worker is not None:
             worker.close()
 
 
-def _serve(args: argparse.Namespace, site: Any, cfg: zenoh.Config, listen: list[str],
-           physics: PassageSimulator) -> int:
+def _serve(args: argparse.Namespace, site: SiteConfig, cfg: zenoh.Config, listen: list[str],
+           physics: PhysicsPort, stop: threading.Event) -> int:
     stamp = time.strftime("%Y%m%d-%H%M%S")
     # unique per run, not per second: two services started together keep both logs
     stem = f"railtwin-{site.site_id}-{stamp}-{os.getpid()}{secrets.token_hex(2)}"
@@ -208,18 +246,11 @@ def _serve(args: argparse.Namespace, site: Any, cfg: zenoh.Config, listen: list[
 
     # every input on disk before it is queued: recover merges it into a cut MCAP
     journal = None if args.no_mcap else InputJournal(args.recordings / f"{stem}-inputs.journal")
-    stop = threading.Event()
-
-    def on_signal(signum: int, _frame: Any) -> None:
-        stop.set()
-
-    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         try:
             session = open_session(cfg)
         except zenoh.ZError as exc:
-            print(f"railtwin serve: cannot open the Zenoh session: {one_line(exc)}",
-                  file=sys.stderr, flush=True)
+            log.error(f"cannot open the Zenoh session: {one_line(exc)}")
             if recorder is not None:
                 recorder.close()
             return 1
@@ -228,33 +259,31 @@ def _serve(args: argparse.Namespace, site: Any, cfg: zenoh.Config, listen: list[
                         chunk_period=args.chunk_period, queue_capacity=args.queue)
             twin.start()
             where = ", ".join(listen) if listen else "(from config)"
-            print(f"railtwin serve: site {site.site_id!r} ({site.length:g} m, {site.contact}), "
-                  f"listening on {where}; passages on {twin.keys.passage}", flush=True)
-            if twin.diagnoser is not None:
-                print(f"railtwin serve: diagnosis on, measurements on {twin.keys.measured} "
-                      f"(pairing timeout {site.diagnosis.pairing_timeout:g} s)", flush=True)
+            log.info(f"site {site.site_id!r} ({site.length:g} m, {site.contact}), "
+                  f"listening on {where}; passages on {twin.keys.passage}")
+            if physics.diagnoses:
+                log.info(f"diagnosis on, measurements on {twin.keys.measured} "
+                      f"(pairing timeout {site.diagnosis.pairing_timeout:g} s)")
             if recorder is not None:
-                print(f"railtwin serve: recording to {args.recordings}/{stem}*", flush=True)
-            print("railtwin serve: ready", flush=True)
+                log.info(f"recording to {args.recordings}/{stem}*")
+            log.info("ready")
             while not stop.wait(0.2):
                 pass
-            twin.stop()
+            twin.stop(deadline=time.monotonic() + args.stop_timeout)
             h = twin.health()
-            print(f"railtwin serve: stopped after {h.passages_done} passages, "
-                  f"{twin.diagnoses_done} diagnoses, {h.errors} errors", flush=True)
+            log.info(f"stopped after {h.passages_done} passages, "
+                  f"{twin.diagnoses_done} diagnoses, {h.errors} errors")
     finally:
-        for s, handler in previous.items():
-            signal.signal(s, handler)
         if journal is not None:
             journal.close()
     if recorder is not None:
         for f in sorted(args.recordings.glob(f"{stem}-*.mcap")):
-            print(f"railtwin serve: MCAP log {f}", flush=True)
+            log.info(f"MCAP log {f}")
         if recorder.rrd_path() is not None:
-            print(f"railtwin serve: Rerun recording {recorder.rrd_path()}", flush=True)
+            log.info(f"Rerun recording {recorder.rrd_path()}")
         if recorder.failures:
-            print(f"railtwin serve: {recorder.failures} recording failures, last: "
-                  f"{recorder.last_failure}", file=sys.stderr, flush=True)
+            log.warning(f"{recorder.failures} recording failures, last: "
+                  f"{recorder.last_failure}")
     return 0
 
 

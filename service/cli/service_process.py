@@ -20,7 +20,11 @@ import time
 from pathlib import Path
 from types import TracebackType
 
-READY = "railtwin serve: ready"
+SERVE_LOG = "railtwin.serve: "
+"""What the service's own log lines say after their time and level (``service.cli.logs``)."""
+READY = SERVE_LOG + "ready"
+MCAP_LOG = SERVE_LOG + "MCAP log "
+RRD_LOG = SERVE_LOG + "Rerun recording "
 
 
 class ServiceStartError(RuntimeError):
@@ -61,7 +65,7 @@ class ServiceProcess:
         env = {**os.environ, "PYTHONUNBUFFERED": "1"}
         self.proc = subprocess.Popen(
             self.args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
-            cwd=Path(__file__).resolve().parents[1],
+            cwd=Path(__file__).resolve().parents[2],
         )
         threading.Thread(target=self._pump, daemon=True).start()
         deadline = time.monotonic() + self.start_timeout
@@ -74,7 +78,7 @@ class ServiceProcess:
             if line is None or left <= 0:
                 self.stop()
                 raise ServiceStartError("railtwin serve did not start:\n" + self.output)
-            if line.startswith(READY):
+            if READY in line:
                 return
 
     def _pump(self) -> None:
@@ -107,11 +111,9 @@ class ServiceProcess:
 
     @property
     def mcap_files(self) -> list[Path]:
-        prefix = "railtwin serve: MCAP log "
-        return [Path(s[len(prefix):]) for s in self.lines if s.startswith(prefix)]
+        return [Path(s.split(MCAP_LOG, 1)[1]) for s in self.lines if MCAP_LOG in s]
 
     @property
     def rrd_file(self) -> Path | None:
-        prefix = "railtwin serve: Rerun recording "
-        found = [Path(s[len(prefix):]) for s in self.lines if s.startswith(prefix)]
+        found = [Path(s.split(RRD_LOG, 1)[1]) for s in self.lines if RRD_LOG in s]
         return found[0] if found else None

@@ -1,6 +1,6 @@
-"""Synthetic measured passages for a site: ``python -m service.clients.synthesize``.
+"""Synthetic measured passages for a site: ``railtwin synthesize``.
 
-    python -m service.clients.synthesize --site examples/site.toml --passage P.json
+    railtwin synthesize --site examples/site.toml --passage P.json
         [--flat flat|rounded_flat --length 0.05 --phase 1.0] [--seed 1]
         [--noise 0.03] [--roughness 3e-6] [--damping-ratio 0.15] [--speed-error 0.01]
         --out MEASURED.csv
@@ -15,22 +15,26 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from schemas.messages import WheelPassage
 from schemas.site import SiteConfig
-from service.physics.diagnosis import Diagnoser
-from service.physics.site_physics import wheel_outline
 from service.wire.site import load_site
-from sim_core.diagnosis.forward import Flat, MeasuredTread, Tread, damping_for_ratio
-from sim_core.diagnosis.synthetic import Perturbations, SyntheticMeasurement, synthetic_measurement
+
+if TYPE_CHECKING:  # the physics (numba, scipy) is imported when used: ``railtwin --help`` is quick
+    from service.physics.diagnosis import Diagnoser
+    from sim_core.diagnosis.forward import Tread
+    from sim_core.diagnosis.synthetic import SyntheticMeasurement
 
 
 def measure(site: SiteConfig, passage: WheelPassage, tread: Tread | None, *, seed: int,
             noise: float = 0.03, roughness: float = 3e-6, damping_ratio: float | None = 0.15,
             speed_error: float = 0.0, diagnoser: Diagnoser | None = None) -> SyntheticMeasurement:
     """What the site would measure of ``passage`` with ``tread`` (None: round)."""
+    from service.physics.diagnosis import Diagnoser
+    from sim_core.diagnosis.forward import damping_for_ratio
+    from sim_core.diagnosis.synthetic import Perturbations, synthetic_measurement
+
     d = diagnoser or Diagnoser(site)
     wheel = d.wheel(passage)
     damping = None
@@ -46,13 +50,16 @@ def measure(site: SiteConfig, passage: WheelPassage, tread: Tread | None, *, see
 
 def passage_tread(passage: WheelPassage) -> Tread | None:
     """The passage's own outline as a tread (None if round)."""
+    from service.physics.site_physics import wheel_outline
+    from sim_core.diagnosis.forward import MeasuredTread
+
     if passage.outline.kind == "round":
         return None
     return MeasuredTread(wheel_outline(passage), passage.phase)
 
 
-def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m service.clients.synthesize", description=__doc__.split("\n")[0])
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``railtwin synthesize``."""
     p.add_argument("--site", type=Path, required=True)
     p.add_argument("--passage", type=Path, required=True)
     p.add_argument("--flat", choices=("flat", "rounded_flat"), default=None,
@@ -65,7 +72,20 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--damping-ratio", type=float, default=0.15, help="true foundation damping")
     p.add_argument("--speed-error", type=float, default=0.0, help="true/reported speed - 1")
     p.add_argument("--out", type=Path, required=True)
-    a = p.parse_args(argv)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="railtwin synthesize", description=__doc__.split("\n")[0])
+    add_arguments(p)
+    return run(p.parse_args(argv))
+
+
+def run(a: argparse.Namespace) -> int:
+    """Write the synthetic measured force of one passage as CSV (t_s,force_N)."""
+    import numpy as np
+
+    from sim_core.diagnosis.forward import Flat
+
     site = load_site(a.site)
     passage = WheelPassage.model_validate_json(a.passage.read_text(encoding="utf-8"))
     R = passage.radius

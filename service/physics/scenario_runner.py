@@ -15,7 +15,7 @@ from __future__ import annotations
 import inspect
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -23,13 +23,23 @@ from schemas import result as res
 from schemas import scenario as sc
 from service.physics import inputs as physics_inputs
 
+if TYPE_CHECKING:  # sim_core is imported when a scenario runs: ``railtwin --help`` stays quick
+    from numpy.typing import ArrayLike
+
+    from sim_core.contact_laws import ContactModel
+    from sim_core.materials import DerivedQuantities
+    from sim_core.multipass import MultiPassOutput
+    from sim_core.passage import PassageSpec
+    from sim_core.rail import RailProfile
+    from sim_core.summary import PassageSummary
+
 Progress = Callable[[int, int], None]
 """progress(done, total): called with the number of passes completed so far."""
 
 SUMMARY_FIELDS = tuple(res.Summary.model_fields)
 
 
-def build_spec(scenario: sc.Scenario, contact: Any) -> Any:
+def build_spec(scenario: sc.Scenario, contact: ContactModel) -> PassageSpec:
     """``PassageSpec`` of the scenario with its ``ContactModel`` (``physics_inputs.contact_model``)."""
     from sim_core.passage import InitialState, PassageSpec
 
@@ -143,7 +153,8 @@ def _merged(base: dict[str, Any], edit: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def package_result(scenario: sc.Scenario, derived: Any, out: Any, wall_time: float) -> res.Result:
+def package_result(scenario: sc.Scenario, derived: DerivedQuantities, out: MultiPassOutput,
+                   wall_time: float) -> res.Result:
     """Turn sim_core's ``MultiPassOutput`` into the contract's ``Result``."""
     last = out.last
     series = res.Series(
@@ -158,8 +169,9 @@ def package_result(scenario: sc.Scenario, derived: Any, out: Any, wall_time: flo
         in_contact=np.asarray(last.in_contact, dtype=bool).ravel().tolist(),
         v_m=_floats(last.v_m),
     )
-    transitions = [
-        res.Transition(t=float(tr.t), kind=tr.kind, x=float(tr.x)) for tr in last.transitions
+    transitions = [  # sim_core's kinds are the contract's (TRANSITION_KINDS), typed str there
+        res.Transition(t=float(tr.t), kind=tr.kind, x=float(tr.x))  # type: ignore[arg-type]
+        for tr in last.transitions
     ]
     summaries = [_summary(s) for s in out.summaries]
     rail_after = None
@@ -190,7 +202,7 @@ def package_result(scenario: sc.Scenario, derived: Any, out: Any, wall_time: flo
     )
 
 
-def _summary(s: Any) -> res.Summary:
+def _summary(s: PassageSummary) -> res.Summary:
     values: dict[str, Any] = {}
     for name in SUMMARY_FIELDS:
         v = getattr(s, name)
@@ -203,7 +215,7 @@ def _summary(s: Any) -> res.Summary:
     return res.Summary(**values)
 
 
-def _rail_samples(rail: Any, x_grid: Any) -> tuple[list[float], list[float]]:
+def _rail_samples(rail: RailProfile, x_grid: ArrayLike) -> tuple[list[float], list[float]]:
     """(x, y) samples of a sim_core ``RailProfile``.
 
     A dented rail is a sampled profile: its own samples. Any other profile (no

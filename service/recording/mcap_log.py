@@ -36,6 +36,7 @@ from mcap.writer import CompressionType, Writer
 from pydantic import BaseModel
 
 from schemas.messages import MESSAGE_MODELS, encoding_schema
+from service.recording import foxglove
 from service.recording.retention import enforce_retention
 
 DEFAULT_MAX_BYTES = 512 * 1024 * 1024
@@ -94,10 +95,11 @@ class McapLog:
         self.files.append(path)
         return writer
 
-    def _channel(self, writer: Writer, topic: str, model: type[BaseModel]) -> int:
+    def _channel(self, writer: Writer, topic: str, model: type[BaseModel],
+                 schema_name: str | None = None) -> int:
         channel = self._channels.get(topic)
         if channel is None:
-            name = encoding_schema(model)
+            name = schema_name or encoding_schema(model)
             schema = self._schemas.get(name)
             if schema is None:
                 data = json.dumps(model.model_json_schema()).encode()
@@ -112,16 +114,17 @@ class McapLog:
 
     def write(
         self, topic: str, model: type[BaseModel], data: bytes, log_time_ns: int,
-        publish_time_ns: int | None = None,
+        publish_time_ns: int | None = None, schema_name: str | None = None,
     ) -> None:
-        """Log one message (``data`` is its JSON) on ``topic``; rotates first if due."""
+        """Log one message (``data`` is its JSON) on ``topic``; rotates first if due.
+        ``schema_name``: the channel's schema name when not railtwin's (``foxglove.Log``)."""
         writer = self._writer
         if writer is not None and self._rotation_due():
             self._finish()
             writer = None
         if writer is None:
             writer = self._open()
-        channel = self._channel(writer, topic, model)
+        channel = self._channel(writer, topic, model, schema_name)
         writer.add_message(
             channel_id=channel, log_time=log_time_ns,
             publish_time=log_time_ns if publish_time_ns is None else publish_time_ns,
@@ -182,7 +185,10 @@ def read_log(paths: list[Path]) -> Iterator[LoggedMessage]:
 
 
 def model_for_schema(schema_name: str) -> type[BaseModel]:
-    """The pydantic model of a logged schema name (``railtwin.PassageResult/1.0``)."""
+    """The pydantic model of a logged schema name (``railtwin.PassageResult/1.0``,
+    ``foxglove.Log``)."""
+    if schema_name == foxglove.SCHEMA_NAME:
+        return foxglove.Log
     name = schema_name.removeprefix("railtwin.").split("/", 1)[0]
     return MESSAGE_MODELS[name]
 

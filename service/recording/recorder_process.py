@@ -18,8 +18,11 @@ recording's passage log says so), which lets the MCAP writer catch up; past
 the twin) rather than being dropped.
 
 The child ignores SIGINT/SIGTERM (the service stops it through the queue, so
-that every queued message is written and the files get their footers) and
-finishes its files on its own if the service dies: it watches its parent.
+that every queued message is written and the files get their footers), from its
+first instruction: it is started with both signals blocked, so that a signal to the
+whole process group while it is still starting does not kill it. It finishes its
+files on its own if the service dies: it watches its parent. If it dies all the
+same, the service stops queueing for it and never waits on its pipe.
 The MCAP log is flushed at least every ``flush_interval`` seconds, so a
 crash loses at most that much.
 """
@@ -30,7 +33,6 @@ import contextlib
 import multiprocessing as mp
 import os
 import queue
-import signal
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -41,6 +43,8 @@ from pydantic import BaseModel
 
 from schemas.diagnosis import Diagnosis
 from schemas.messages import PassageResult, RailState
+from service.recording import foxglove
+from service.wire.child_process import ignore_stop_signals, start_shielded
 
 
 @dataclass(frozen=True)
@@ -87,7 +91,7 @@ class ProcessRecorder:
             args=(plan, self._queue, self._status, os.getpid(), self._pending),
             name="railtwin-recorder", daemon=True,
         )
-        self._process.start()
+        start_shielded(self._process)  # a signal to the group while it starts is not its death
         self.failures = 0
         self.last_failure: str | None = None
         self.not_drawn = 0
@@ -136,9 +140,16 @@ class ProcessRecorder:
         return int(self._pending.value)
 
     def _put(self, item: tuple[Any, ...]) -> None:
+        if not self._process.is_alive():  # nobody reads the pipe: queueing would fill it
+            self._lost(f"the recorder process has died (exit code {self._process.exitcode})")
+            return
         with self._pending.get_lock():
             self._pending.value += item[1]
         self._queue.put(item)
+
+    def _lost(self, why: str) -> None:
+        self.failures += 1
+        self.last_failure = f"recording stopped: {why}"
 
     def _put_drawing(self, item: tuple[Any, ...], passage_id: str | None) -> None:
         """Queue a Rerun drawing, unless the child is ``rerun_backlog_bytes`` behind."""
@@ -198,14 +209,20 @@ class ProcessRecorder:
                 f"{self.not_drawn} passages, dents or diagnoses not drawn in the Rerun recording: "
                 f"the recorder was more than {self.plan.rerun_backlog_bytes / 2**20:g} MB behind "
                 "(the MCAP log has them all)")
-        self._queue.put(None)
-        self._process.join(timeout)
+        if self._process.is_alive():
+            self._queue.put(None)
+            self._process.join(timeout)
         if self._process.is_alive():
             self._process.terminate()
             self._process.join(5.0)
             self.failures += 1
             self.last_failure = f"recorder did not finish within {timeout:g} s"
+        elif self._process.exitcode not in (0, None):
+            self._lost(f"the recorder process ended with exit code {self._process.exitcode}")
         self._poll()
+        # what is still in the queue's pipe has no reader: exit without waiting to write it
+        self._queue.cancel_join_thread()
+        self._queue.close()
 
     def _poll(self) -> None:
         while True:
@@ -225,8 +242,7 @@ class ProcessRecorder:
 def _child_main(plan: RecordingPlan, inbox: Any, status: Any, parent_pid: int,
                 pending: Any) -> None:
     """The child's loop: write every queued item in order; flush MCAP regularly."""
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, signal.SIG_IGN)
+    ignore_stop_signals()
     from schemas import all_models
     from service.recording.mcap_log import McapLog
     from service.recording.rerun_recording import RerunRecording
@@ -291,6 +307,11 @@ def _write(item: tuple[Any, ...], models: dict[str, type[BaseModel]], mcap: Any,
     if kind == "m" and mcap is not None:
         topic, model_name, data, log_time_ns, publish_time_ns = rest
         mcap.write(topic, models[model_name], data, log_time_ns, publish_time_ns)
+        entry = foxglove.log_entry(model_name, data, log_time_ns)
+        if entry is not None:  # errors and verdicts in Foxglove's Log panel too
+            mcap.write(foxglove.log_topic(topic), foxglove.Log,
+                       entry.model_dump_json().encode(), log_time_ns,
+                       schema_name=foxglove.SCHEMA_NAME)
     elif kind == "p" and rerun is not None:
         rerun.log_passage(PassageResult.model_validate_json(rest[0]))
     elif kind == "s" and rerun is not None:
