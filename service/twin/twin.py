@@ -13,8 +13,11 @@ Pipeline, per message on ``railtwin/<site>/passage``:
 
 With ``pace="realtime"`` the series are published in chunks when the wheel
 would reach their end (a pacer thread), and the result when it leaves the site.
-Queryables answer ``railtwin/<site>/rail`` (``RailState``) and
-``railtwin/health`` (``Health``).
+Queryables answer ``railtwin/<site>/rail`` (``RailState``), ``railtwin/<site>/health``
+and ``railtwin/health`` (``Health``), and ``railtwin/<site>/diagnoses?since=<unix s>``
+(catch-up: one ``Diagnosis`` per reply, ``service.twin.diagnoses``). Every queryable
+replies on its own concrete key, never on the query's (a wildcard query such as
+``railtwin/*/health`` gets one reply per twin).
 
 Diagnosis (with the site's own physics, ``SitePhysics``): measured passages come in on
 ``railtwin/<site>/measured`` (``MeasuredPassage``) through the same queue and worker.
@@ -71,6 +74,7 @@ from service.physics.worker import (
 )
 from service.recording.input_journal import InputJournal
 from service.recording.recorder import RecorderFront
+from service.twin.diagnoses import DiagnosisStore, SinceError, parse_since
 from service.twin.kept_passages import KeptPassages
 from service.wire import limits
 from service.wire.keyspace import HEALTH_KEY, SiteKeys
@@ -184,8 +188,11 @@ class Twin:
         pace: Pace = "fast",
         chunk_period: float = 0.02,
         queue_capacity: int = 10_000,
+        diagnoses: DiagnosisStore | None = None,
     ) -> None:
         self.site = site
+        # what catch-up queries are answered from (in memory when the caller keeps no state)
+        self.diagnoses = diagnoses if diagnoses is not None else DiagnosisStore(None)
         self.journal = journal
         self.keys = SiteKeys(site.site_id)
         self.session = session
@@ -250,8 +257,10 @@ class Twin:
         s = self.session
         self._declared = [
             s.declare_queryable(self.keys.rail, self._on_rail_query),
-            s.declare_queryable(HEALTH_KEY, self._on_health_query),
-            s.declare_queryable(self.keys.health, self._on_health_query),
+            s.declare_queryable(HEALTH_KEY, lambda q: self._on_health_query(q, HEALTH_KEY)),
+            s.declare_queryable(self.keys.health,
+                                lambda q: self._on_health_query(q, self.keys.health)),
+            s.declare_queryable(self.keys.diagnoses, self._on_diagnoses_query),
             s.declare_subscriber(self.keys.passage, self._on_sample),
             s.declare_subscriber(self.keys.measured, self._on_measured),
             # clients see the twin come and go: a liveliness subscriber gets PUT/DELETE
@@ -330,10 +339,27 @@ class Twin:
             except Exception as exc:
                 query.reply_err(f"rail state unavailable: {exc}")
 
-    def _on_health_query(self, query: zenoh.Query) -> None:
-        with query:
+    def _on_health_query(self, query: zenoh.Query, key: str) -> None:
+        with query:  # on the queryable's own key: a wildcard query gets one reply per twin
             data = self.health().model_dump_json().encode()
-            query.reply(query.key_expr, data, encoding=self._encodings[Health])
+            query.reply(key, data, encoding=self._encodings[Health])
+
+    def _on_diagnoses_query(self, query: zenoh.Query) -> None:
+        """Catch-up: every Diagnosis made (or of a passage) since ``?since=<unix s>``."""
+        with query:
+            try:
+                since = parse_since(query.parameters.get("since"))
+            except SinceError as exc:
+                query.reply_err(f"{self.keys.diagnoses}: {exc}")
+                return
+            if query.accepts_replies() != zenoh.ReplyKeyExpr.ANY:
+                query.reply_err(
+                    f"{self.keys.diagnoses}: each diagnosis is answered on its own key "
+                    f"{self.keys.diagnosis('<passage_id>')}: query with "
+                    "accept_replies=zenoh.ReplyKeyExpr.ANY (or add the parameter _anyke: ?since=T;_anyke)")
+                return
+            for pid, data in self.diagnoses.since(since):
+                query.reply(self.keys.diagnosis(pid), data, encoding=self._encodings[Diagnosis])
 
     def health(self) -> Health:
         mcap_path = self.recorder.mcap_path() if self.recorder is not None else None
@@ -588,11 +614,15 @@ class Twin:
                 item, "simulation_failed",
                 f"measurement of {pid} could not be diagnosed: {type(exc).__name__}: {exc}", pid)
             return
-        diag = outcome.diagnosis
+        # the wheel and the passage's time, whatever the diagnoser filled in (the fleet files
+        # each diagnosis under its wheel, site and date)
+        diag = outcome.diagnosis.model_copy(
+            update={"wheel": passage.wheel, "timestamp": passage.timestamp})
         self._diagnosed[pid] = None  # a refused measurement may be sent again, corrected
         while len(self._diagnosed) > KEPT_DIAGNOSED:
             self._diagnosed.popitem(last=False)
         data = diag.model_dump_json().encode()
+        self.diagnoses.add(pid, made_at=time.time(), timestamp=passage.timestamp, data=data)
         self._put(self.keys.diagnosis(pid), f"{self.keys.prefix}/diagnosis", Diagnosis, data)
         self.diagnoses_done += 1
         if self.recorder is not None:
