@@ -136,3 +136,11 @@ def test_example_clients_show_help(name: str) -> None:
     assert out.returncode == 0, out.stderr
     assert out.stdout.startswith(f"usage: {name.removesuffix('.py')}")
     assert "--connect" in out.stdout and "--mode" in out.stdout
+
+
+def test_railtwin_schema_out_writes_what_is_committed(tmp_path: Path) -> None:
+    from service.cli.main import main as cli_main
+
+    assert cli_main(["schema", "--out", str(tmp_path / "json")]) == 0
+    assert export.differences(tmp_path / "json") == []
+    assert cli_main(["schema", "Health", "--out", str(tmp_path)]) == 2  # NAME and --out

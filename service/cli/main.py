@@ -436,18 +436,31 @@ def register_schema(subparsers: Any) -> None:
         help="print the JSON Schemas of the contract",
         description=(
             "Print the JSON Schema of every top-level model as one JSON object "
-            "{name: schema}, or of the model NAME alone."
+            "{name: schema}, or of the model NAME alone; with --out DIR, write one file "
+            "<Name>.schema.json per model there (as committed in schemas/json/)."
         ),
         epilog=EXIT_CODES_HELP,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("name", nargs="?", metavar="NAME", help="model name, e.g. Scenario, Result")
     p.add_argument("--indent", type=int, default=2, help="JSON indentation (default 2)")
+    p.add_argument("--out", type=Path, default=None, metavar="DIR",
+                   help="write every model's schema into DIR (e.g. schemas/json) instead")
     p.set_defaults(func=cmd_schema)
 
 
 def cmd_schema(args: argparse.Namespace) -> int:
-    from schemas import all_json_schemas
+    from schemas import all_json_schemas, export
+
+    if args.out is not None:
+        if args.name is not None:
+            raise CommandError("--out writes every schema: give no NAME with it", EXIT_USAGE)
+        try:
+            paths = export.write(args.out)
+        except OSError as exc:
+            raise CommandError(f"cannot write {args.out}: {exc.strerror or exc}") from None
+        sys.stdout.write(f"wrote {len(paths)} JSON Schemas to {args.out}\n")
+        return EXIT_OK
 
     schemas = all_json_schemas()
     doc: Any = schemas
