@@ -144,3 +144,22 @@ def test_railtwin_schema_out_writes_what_is_committed(tmp_path: Path) -> None:
     assert cli_main(["schema", "--out", str(tmp_path / "json")]) == 0
     assert export.differences(tmp_path / "json") == []
     assert cli_main(["schema", "Health", "--out", str(tmp_path)]) == 2  # NAME and --out
+
+
+def test_send_passage_gets_its_result_from_a_twin() -> None:
+    """The example client against a twin (stub physics, in this process) over loopback."""
+    from tests.test_network import Site
+
+    site = Site("km12")
+    try:
+        env = {**os.environ, "PYTHONPATH": str(ROOT)}
+        out = subprocess.run(
+            [sys.executable, "send_passage.py", "--site", "km12", "--connect", site.endpoint,
+             "--wheel", "31-80-4751-123-4/2/left", "--direction", "end1_leading"],
+            cwd=CLIENTS, env=env, capture_output=True, text=True, timeout=120, check=False)
+    finally:
+        site.close()
+    assert out.returncode == 0, out.stderr
+    assert "of wheel 31-80-4751-123-4/2/left on railtwin/km12/passage" in out.stdout
+    assert "'peak_force':" in out.stdout, out.stdout
+    assert site.twin.passages_done == 1
