@@ -497,15 +497,20 @@ def test_figures_calls_make_figures(
     assert (tmp_path / "figs").is_dir()
 
 
-def test_optional_command_modules_register(monkeypatch: pytest.MonkeyPatch) -> None:
-    """A module in OPTIONAL_COMMAND_MODULES adds its subcommand through register()."""
+def test_service_commands_register(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A register() in SERVICE_COMMANDS adds its subcommand, whose func gives the exit code."""
 
     def register(subparsers: Any) -> None:
         p = subparsers.add_parser("hello", help="say hello")
         p.set_defaults(func=lambda args: 7)
 
-    fake = types.ModuleType("service.fakecmd")
-    fake.register = register  # type: ignore[attr-defined]
-    monkeypatch.setitem(sys.modules, "service.fakecmd", fake)
-    monkeypatch.setattr(cli, "OPTIONAL_COMMAND_MODULES", ("service.fakecmd", "service.nothere"))
+    monkeypatch.setattr(cli, "SERVICE_COMMANDS", (register,))
     assert cli.main(["hello"]) == 7
+
+
+@pytest.mark.parametrize("command", ["serve", "feed", "feed-measured", "synthesize", "replay",
+                                     "diagnose", "recover", "demo"])
+def test_every_entry_point_is_a_subcommand(command: str,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, _ = run_main([command, "--help"], capsys)
+    assert code == 0 and out.startswith(f"usage: railtwin {command}")

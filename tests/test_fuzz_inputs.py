@@ -18,8 +18,10 @@ from hypothesis import strategies as st
 
 from schemas.messages import ServiceError, WheelPassage
 from schemas.site import SiteConfig
+from service.physics.local import LocalPhysics
 from service.physics.stub import StubPhysics
-from service.twin.twin import Inbound, Twin
+from service.twin.inbound import Inbound
+from service.twin.twin import Twin
 
 SITE = SiteConfig.model_validate({
     "site_id": "fuzz", "length": 3.0, "output_sample_rate": 2000.0, "contact": "hertz",
@@ -44,12 +46,9 @@ class RecordingSession:
 
 def answer_to(payload: bytes, key: str) -> list[tuple[str, bytes]]:
     session = RecordingSession()
-    twin = Twin(SITE, session, StubPhysics(SITE))  # type: ignore[arg-type]
+    twin = Twin(SITE, session, LocalPhysics(StubPhysics(SITE)))  # type: ignore[arg-type]
     item = Inbound(key, payload, time.time_ns(), time.monotonic())
-    if key.endswith("/measured"):
-        twin._serve_measured(item)
-    else:
-        twin._serve(item)
+    twin.serve(item)
     return session.puts
 
 

@@ -23,9 +23,11 @@ from schemas.diagnosis import MAX_MEASURED_SAMPLES, MeasuredPassage
 from schemas.messages import Health, PassageResult, ServiceError, WheelPassage
 from schemas.scenario import MAX_OUTLINE_POINTS
 from schemas.site import MAX_RAIL_POINTS, SiteConfig
+from service.physics.local import LocalPhysics
 from service.physics.stub import StubPhysics
-from service.twin.twin import Twin, json_encoding
+from service.twin.twin import Twin
 from service.wire import limits
+from service.wire.encoding import json_encoding
 from service.wire.keyspace import SiteKeys
 from service.wire.zenoh_session import build_config, free_tcp_endpoint
 
@@ -217,7 +219,7 @@ def rig(request: pytest.FixtureRequest) -> Iterator[Rig]:
     endpoint = free_tcp_endpoint()
     with zenoh.open(build_config(listen=[endpoint])) as server, \
             zenoh.open(build_config(connect=[endpoint])) as client:
-        twin = Twin(SITE, server, SlowStub(SITE), queue_capacity=capacity)
+        twin = Twin(SITE, server, LocalPhysics(SlowStub(SITE)), queue_capacity=capacity)
         twin.start()
         out = Out()
         sub = client.declare_subscriber(KEYS.all_outputs, out)
@@ -308,7 +310,9 @@ def test_measured_nesting_and_unknown_key_not_echoed(rig: Rig) -> None:
 
 @pytest.mark.parametrize("rig", [2], indirect=True)
 def test_overloaded_carries_the_passage_id_and_site_health(rig: Rig) -> None:
-    physics = rig.twin.physics
+    port = rig.twin.physics
+    assert isinstance(port, LocalPhysics)
+    physics = port.model
     assert isinstance(physics, SlowStub)
     physics.delay = 0.3
     for i in range(6):

@@ -24,10 +24,12 @@ from schemas.diagnosis import Diagnosis, MeasuredPassage
 from schemas.messages import Health, PassageResult, RailState, WheelPassage, WheelRef
 from schemas.site import SiteConfig
 from service.cli.service_process import ServiceProcess
+from service.physics.local import LocalPhysics
+from service.physics.port import DiagnosisOutcome
 from service.physics.stub import StubPhysics
-from service.physics.worker import DiagnosisOutcome
 from service.twin.diagnoses import DiagnosisStore
-from service.twin.twin import Twin, json_encoding
+from service.twin.twin import Twin
+from service.wire.encoding import json_encoding
 from service.wire.keyspace import SiteKeys
 from service.wire.zenoh_session import build_config, free_tcp_endpoint
 
@@ -75,9 +77,9 @@ class Site:
         self.endpoint = free_tcp_endpoint()
         self.config = site(site_id)
         self.session = zenoh.open(build_config(listen=[self.endpoint]))
-        self.twin = Twin(self.config, self.session, StubPhysics(self.config),  # type: ignore[arg-type]
-                         diagnoses=store)
-        self.twin.diagnoser = lambda p, m: stand_in_diagnoser(site_id, p, m)
+        physics = LocalPhysics(StubPhysics(self.config),
+                               diagnose=lambda p, m: stand_in_diagnoser(site_id, p, m))
+        self.twin = Twin(self.config, self.session, physics, diagnoses=store)
         self.twin.start()
 
     def close(self) -> None:

@@ -30,7 +30,7 @@ from service.physics.diagnosis import Diagnoser
 from service.physics.site_physics import SitePhysics
 from service.recording.mcap_log import LoggedMessage, decode, read_log
 from service.recording.rerun_recording import entities
-from service.twin.twin import json_encoding
+from service.wire.encoding import json_encoding
 from service.wire.keyspace import SiteKeys
 from service.wire.site import load_site
 from service.wire.zenoh_session import build_config, free_tcp_endpoint

@@ -18,7 +18,7 @@ from schemas.messages import (
     WheelPassage,
     encoding_schema,
 )
-from service.twin.twin import service_error_from_validation
+from service.twin.errors import service_error_from_validation
 from service.wire.site import SiteFileError, load_site
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -1,6 +1,6 @@
 """``make demo``: the twin on loopback, a sample train streamed to it, where the files are.
 
-    .venv/bin/python -m service.cli.demo [--site examples/site.toml]
+    railtwin demo [--site examples/site.toml]
         [--train recordings/samples/train_160kmh.json] [--recordings recordings]
 
 Starts ``railtwin serve`` in a child process on a free loopback port, streams
@@ -20,20 +20,45 @@ import subprocess
 import sys
 import tempfile
 from pathlib import Path
+from typing import Any
 
 from service.cli.service_process import ServiceProcess
 from service.wire.site import load_site
 from service.wire.zenoh_session import free_tcp_endpoint
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
+
+RAILTWIN = (sys.executable, "-m", "service.cli")
+"""``railtwin`` of this interpreter (the console script may not be on PATH)."""
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--site", type=Path, default=ROOT / "examples/site.toml",
+                   help="site file (default examples/site.toml)")
+    p.add_argument("--train", type=Path, default=ROOT / "recordings/samples/train_160kmh.json",
+                   help="train file (default recordings/samples/train_160kmh.json)")
+    p.add_argument("--recordings", type=Path, default=ROOT / "recordings",
+                   help="where the MCAP log and the .rrd go (default recordings/)")
+
+
+def register(subparsers: Any) -> argparse.ArgumentParser:
+    """Add ``demo`` to the ``railtwin`` CLI's subparsers."""
+    p: argparse.ArgumentParser = subparsers.add_parser(
+        "demo", help="the twin on loopback with a sample train streamed through it (make demo)",
+        description=__doc__.split("\n")[0])
+    add_arguments(p)
+    p.set_defaults(func=run)
+    return p
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="railtwin-demo", description=__doc__.split("\n")[0])
-    p.add_argument("--site", type=Path, default=ROOT / "examples/site.toml")
-    p.add_argument("--train", type=Path, default=ROOT / "recordings/samples/train_160kmh.json")
-    p.add_argument("--recordings", type=Path, default=ROOT / "recordings")
-    args = p.parse_args(argv)
+    p = argparse.ArgumentParser(prog="railtwin demo", description=__doc__.split("\n")[0])
+    add_arguments(p)
+    return run(p.parse_args(argv))
+
+
+def run(args: argparse.Namespace) -> int:
+    """Start the twin, stream the train and the measurements, print where the files are."""
     site = load_site(args.site)
     endpoint = free_tcp_endpoint()
     print(f"demo: starting railtwin serve for site {site.site_id!r} on {endpoint} "
@@ -44,7 +69,7 @@ def main(argv: list[str] | None = None) -> int:
     ) as svc:
         saved = args.recordings / "demo-measured.json"
         args.recordings.mkdir(parents=True, exist_ok=True)
-        measured_cmd = [sys.executable, "-m", "service.clients.measured_feeder", "--train",
+        measured_cmd = [*RAILTWIN, "feed-measured", "--train",
                         str(args.train), "--site-file", str(args.site)]
         print("demo: the site's measured force of four wheels, made by the generator "
               "(each wheel's own outline, unknown roughness and damping, sensor noise)",
@@ -57,7 +82,7 @@ def main(argv: list[str] | None = None) -> int:
              "--timeout", "120"], cwd=ROOT,
         )
         feeder = subprocess.run(
-            [sys.executable, "-m", "service.clients.feeder", "--train", str(args.train),
+            [*RAILTWIN, "feed", "--train", str(args.train),
              "--site", site.site_id, "--connect", endpoint, "--timeout", "300"],
             cwd=ROOT, check=False,
         )

@@ -17,7 +17,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from service.cli.main import EXIT_CODES_HELP, EXIT_FAILURE, EXIT_OK, EXIT_USAGE, CommandError
+from service.cli.common import EXIT_CODES_HELP, EXIT_FAILURE, EXIT_OK, EXIT_USAGE, CommandError
 
 
 def register(subparsers: Any) -> None:
@@ -69,7 +69,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     from pydantic import ValidationError
 
     from schemas.messages import WheelPassage
-    from service.cli.main import _read_json, _write_atomic
+    from service.cli.common import read_json, write_atomic
     from service.clients.measured_io import MeasuredFileError, read_measured
     from service.physics.diagnosis import Diagnoser, MeasurementError
     from service.wire.site import SiteFileError, load_site
@@ -78,7 +78,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
         site = load_site(args.site)
     except (SiteFileError, OSError) as exc:
         raise CommandError(f"invalid site {args.site}: {exc}", EXIT_USAGE) from None
-    raw = _read_json(str(args.passage), str(args.passage))
+    raw = read_json(str(args.passage), str(args.passage))
     try:
         passage = WheelPassage.model_validate(raw)
     except ValidationError as exc:
@@ -100,6 +100,6 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
         raise CommandError(f"the fit failed: {exc}", EXIT_FAILURE) from None
     text = diagnosis.model_dump_json(indent=2)
     if args.out is not None:
-        _write_atomic(args.out, text + "\n")
+        write_atomic(args.out, text + "\n")
     sys.stdout.write(text + "\n" if args.format == "json" else table(diagnosis))
     return EXIT_OK

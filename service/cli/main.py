@@ -5,61 +5,37 @@
     railtwin schema [NAME]                              # JSON Schemas of the contract
     railtwin figures --out DIR                          # the paper's figures
 
-Subcommands are plug-ins: a module exposes ``register(subparsers)`` that adds
-its parser and sets ``func`` (``handler(args) -> exit code``) with
-``set_defaults``. The built-in commands are registered below; the optional
-modules in ``OPTIONAL_COMMAND_MODULES`` (``service.cli.serve``,
-``service.cli.replay``) are registered when they exist; one that fails to import
-(e.g. a missing optional dependency) is skipped with a warning on stderr, so
-that ``simulate`` keeps working. ``register`` must stay cheap: import
-heavy libraries (zenoh, rerun, matplotlib) inside the handler, not at module
-level, so that ``railtwin --help`` and ``railtwin simulate`` start fast.
+One module a subcommand (or a group): it exposes ``register(subparsers)`` that adds its
+parser and sets ``func`` (``handler(args) -> exit code``) with ``set_defaults``. The
+built-in commands are registered below, the service's in ``SERVICE_COMMANDS``.
+``register`` must stay cheap: heavy libraries (numba, rerun, matplotlib) are imported inside
+the handler, not at module level, so that ``railtwin --help`` starts fast.
 """
 
 from __future__ import annotations
 
 import argparse
-import importlib
 import json
 import os
 import sys
-import tempfile
 import traceback
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import IO, Any, NoReturn
 
-EXIT_OK = 0
-EXIT_FAILURE = 1
-EXIT_USAGE = 2
-EXIT_INTERRUPTED = 130
-
-EXIT_CODES_HELP = """\
-exit status:
-  0    success
-  1    runtime failure (the simulation failed, an output could not be written,
-       an optional dependency is missing)
-  2    invalid input (bad arguments, unreadable or invalid scenario file; the
-       message names the offending field)
-  130  interrupted (Ctrl-C)
-"""
-
-OPTIONAL_COMMAND_MODULES: tuple[str, ...] = (
-    "service.cli.serve", "service.cli.replay", "service.cli.diagnose", "service.cli.recover",
-    "service.cli.router",
+from service.cli import clients, demo, diagnose, recover, replay, router, serve
+from service.cli.common import (
+    EXIT_CODES_HELP,
+    EXIT_FAILURE,
+    EXIT_INTERRUPTED,
+    EXIT_OK,
+    EXIT_USAGE,
+    CommandError,
+    read_json,
+    write_atomic,
 )
-"""Modules that add subcommands when present (each defines ``register(subparsers)``)."""
 
 PROG = "railtwin"
-
-
-class CommandError(Exception):
-    """A failure to report as one message and an exit code, without a traceback."""
-
-    def __init__(self, message: str, code: int = EXIT_FAILURE, report: Any = None) -> None:
-        super().__init__(message)
-        self.code = code
-        self.report = report
 
 
 class _Parser(argparse.ArgumentParser):
@@ -143,7 +119,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         sys.stdout.write(text + "\n")
         return EXIT_OK
     if args.out:
-        _write_atomic(Path(args.out), text)
+        write_atomic(Path(args.out), text)
     if not args.quiet:
         if args.format == "json":
             sys.stdout.write(json.dumps(summary_document(result, args.out)) + "\n")
@@ -159,7 +135,7 @@ def _load_scenario(path: str, source: str) -> Any:
     from schemas.errors import ErrorReport
     from schemas.scenario import Scenario
 
-    data = _read_json(path, source)
+    data = read_json(path, source)
     try:
         return Scenario.model_validate(data)
     except ValidationError as exc:
@@ -246,7 +222,7 @@ def _simulate_batch(args: argparse.Namespace) -> int:
                 _note(args, f"compiled physics loaded in {seconds:.2f} s")
             started = time.perf_counter()
             result = _run(scenario, path, args)
-            _write_atomic(out, result.model_dump_json())
+            write_atomic(out, result.model_dump_json())
             elapsed = time.perf_counter() - started
         except CommandError as exc:
             failures.append(exc.code)
@@ -291,49 +267,6 @@ def _report_one_line(exc: CommandError, args: argparse.Namespace, tag: str, sour
         text = f"{source}: {text}"
     sys.stderr.write(f"{PROG} {args.command}: {tag} {text}\n")
     sys.stderr.flush()
-
-
-def _read_json(path: str, source: str) -> Any:
-    from schemas.errors import ErrorReport
-
-    try:
-        text = sys.stdin.read() if path == "-" else Path(path).read_text(encoding="utf-8")
-    except OSError as exc:
-        message = f"cannot read {source}: {exc.strerror or exc}"
-        raise CommandError(
-            message, EXIT_USAGE, ErrorReport(error="io_error", message=message, source=source)
-        ) from None
-    except UnicodeDecodeError as exc:
-        message = f"cannot read {source}: not UTF-8 text ({exc.reason})"
-        raise CommandError(
-            message, EXIT_USAGE, ErrorReport(error="invalid_input", message=message, source=source)
-        ) from None
-    try:
-        return json.loads(text)
-    except json.JSONDecodeError as exc:
-        message = f"{source} is not valid JSON: line {exc.lineno} column {exc.colno}: {exc.msg}"
-        raise CommandError(
-            message,
-            EXIT_USAGE,
-            ErrorReport(error="invalid_input", message=message, source=source),
-        ) from None
-
-
-def _write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` via a temporary file, so a reader never sees half a result."""
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-        try:
-            with os.fdopen(fd, "w", encoding="utf-8") as f:
-                f.write(text)
-                f.write("\n")
-            os.replace(tmp, path)
-        except BaseException:
-            Path(tmp).unlink(missing_ok=True)
-            raise
-    except OSError as exc:
-        raise CommandError(f"cannot write {path}: {exc.strerror or exc}") from None
 
 
 class _ProgressPrinter:
@@ -502,18 +435,14 @@ def cmd_figures(args: argparse.Namespace) -> int:
         raise CommandError(
             "matplotlib is not installed: pip install -e '.[figures]' (or make figures)"
         ) from None
-    try:
-        module = importlib.import_module("service.cli.figures")
-    except ModuleNotFoundError as exc:
-        if exc.name != "service.cli.figures":
-            raise
-        raise CommandError("service/cli/figures.py is not there yet: no figures to draw") from None
+    from service.cli import figures
+
     out = Path(args.out)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise CommandError(f"cannot create {out}: {exc.strerror or exc}") from None
-    paths = module.make_figures(out)
+    paths = figures.make_figures(out)
     for path in paths:
         sys.stdout.write(f"{path}\n")
     return EXIT_OK
@@ -522,6 +451,14 @@ def cmd_figures(args: argparse.Namespace) -> int:
 # --- the parser and main --------------------------------------------------------------------
 
 BUILTIN_COMMANDS = (register_simulate, register_schema, register_figures)
+
+SERVICE_COMMANDS: tuple[Callable[[Any], Any], ...] = (
+    serve.register, clients.register_feed, clients.register_feed_measured,
+    clients.register_synthesize, replay.register, diagnose.register, recover.register,
+    demo.register, router.register,
+)
+"""The service's subcommands: serve, feed, feed-measured, synthesize, replay, diagnose,
+recover, demo, router."""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -550,20 +487,8 @@ def build_parser() -> argparse.ArgumentParser:
     subparsers.required = True
     for register in BUILTIN_COMMANDS:
         register(subparsers)
-    for name in OPTIONAL_COMMAND_MODULES:
-        try:
-            module = importlib.import_module(name)
-        except ModuleNotFoundError as exc:
-            if exc.name == name:
-                continue  # not written yet
-            sys.stderr.write(f"{PROG}: warning: commands of {name} unavailable: {exc}\n")
-            continue
-        except ImportError as exc:
-            sys.stderr.write(f"{PROG}: warning: commands of {name} unavailable: {exc}\n")
-            continue
-        plugin = getattr(module, "register", None)
-        if callable(plugin):
-            plugin(subparsers)
+    for register_service_command in SERVICE_COMMANDS:
+        register_service_command(subparsers)
     return parser
 
 

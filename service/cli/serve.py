@@ -13,7 +13,6 @@ Also runnable as ``python -m service.cli.serve ...`` (what the tests do).
 from __future__ import annotations
 
 import argparse
-import hashlib
 import os
 import re
 import secrets
@@ -27,8 +26,10 @@ from typing import Any
 
 import zenoh
 
-from service.physics.port import PassageSimulator
-from service.physics.rail_store import RailStore, StateMismatchError
+from schemas.site import SiteConfig
+from service.physics.local import LocalPhysics
+from service.physics.port import PhysicsPort
+from service.physics.rail_store import RailStore, StateMismatchError, physics_fingerprint
 from service.physics.worker import PhysicsPool
 from service.recording.input_journal import InputJournal
 from service.recording.mcap_log import DEFAULT_MAX_BYTES, DEFAULT_MAX_SECONDS
@@ -104,16 +105,6 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
     return p
 
 
-def make_physics(kind: str, site: Any) -> PassageSimulator:
-    if kind == "stub":
-        from service.physics.stub import StubPhysics
-
-        return StubPhysics(site)
-    from service.physics.site_physics import SitePhysics
-
-    return SitePhysics(site)
-
-
 def one_line(exc: BaseException) -> str:
     """The first sentence of a Zenoh error, without its source locations."""
     text = re.sub(r"\s+at /\S+", "", str(exc)).replace("\n", " ")
@@ -129,11 +120,11 @@ def package_version() -> str:
         return "unknown"
 
 
-def open_state(directory: Path, site: Any) -> RailStore:
-    """The site's state store; refuses one written for another site file or version."""
-    pkg = package_version()
-    digest = hashlib.sha256(site.model_dump_json().encode()).hexdigest()[:16]
-    return RailStore(directory, site.site_id, f"railtwin {pkg}, site file {digest}")
+def open_state(directory: Path, site: SiteConfig) -> RailStore:
+    """The site's state store; refuses one of another site, made with other physics (rail,
+    material, contact law, foundation, dent model) or by a newer railtwin."""
+    return RailStore(directory, site.site_id, physics_fingerprint(site),
+                     written_by=f"railtwin {package_version()}")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -170,12 +161,11 @@ def run(args: argparse.Namespace) -> int:
               "every wheel rolls on the dents of the ones before", flush=True)
         workers = 1
     worker: PhysicsPool | None = None
-    physics: PassageSimulator
+    physics: PhysicsPort
     if args.in_process:
-        physics = make_physics(args.physics, site)
-        warm_up = getattr(physics, "warm_up", None)
-        if warm_up is not None:
-            print(f"railtwin serve: physics warmed up in {warm_up():.1f} s", flush=True)
+        local = LocalPhysics.of(args.physics, site)
+        print(f"railtwin serve: physics warmed up in {local.warm_up():.1f} s", flush=True)
+        physics = local
     else:  # the compiled physics holds the GIL: it runs in a worker process
         store = None
         if not args.no_state:
@@ -184,6 +174,10 @@ def run(args: argparse.Namespace) -> int:
             except (StateMismatchError, OSError, sqlite3.Error) as exc:
                 print(f"railtwin serve: state: {exc}", file=sys.stderr)
                 return 2
+            if store.migrated_from is not None:
+                print(f"railtwin serve: state {store.path}: migrated from state schema "
+                      f"{store.migrated_from}; its rail is taken as made with the physics of "
+                      f"{args.site} as it is now", flush=True)
             print(f"railtwin serve: state {store.path} ({store.applied_count()} passages "
                   "applied before)", flush=True)
         worker = PhysicsPool(site, args.physics, workers=workers, budget=args.passage_budget,
@@ -202,7 +196,7 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _serve(args: argparse.Namespace, site: Any, cfg: zenoh.Config, listen: list[str],
-           physics: PassageSimulator) -> int:
+           physics: PhysicsPort) -> int:
     stamp = time.strftime("%Y%m%d-%H%M%S")
     # unique per run, not per second: two services started together keep both logs
     stem = f"railtwin-{site.site_id}-{stamp}-{os.getpid()}{secrets.token_hex(2)}"
@@ -253,7 +247,7 @@ def _serve(args: argparse.Namespace, site: Any, cfg: zenoh.Config, listen: list[
             where = ", ".join(listen) if listen else "(from config)"
             print(f"railtwin serve: site {site.site_id!r} ({site.length:g} m, {site.contact}), "
                   f"listening on {where}; passages on {twin.keys.passage}", flush=True)
-            if twin.diagnoser is not None:
+            if physics.diagnoses:
                 print(f"railtwin serve: diagnosis on, measurements on {twin.keys.measured} "
                       f"(pairing timeout {site.diagnosis.pairing_timeout:g} s)", flush=True)
             if recorder is not None:

@@ -1,6 +1,6 @@
 """Stream a train's wheel passages to a running twin and collect what comes back.
 
-    python -m service.clients.feeder --train recordings/samples/train_160kmh.json \\
+    railtwin feed --train recordings/samples/train_160kmh.json \\
         --site demo --connect tcp/127.0.0.1:7447
 
 Used by ``make demo`` (one line per wheel: peak force, contact losses, dent)
@@ -23,7 +23,7 @@ from pathlib import Path
 import zenoh
 
 from schemas.messages import Health, PassageResult, ServiceError, TrainFile, WheelPassage
-from service.twin.twin import json_encoding
+from service.wire.encoding import json_encoding
 from service.wire.keyspace import HEALTH_KEY, SiteKeys
 from service.wire.zenoh_session import DEFAULT_ENDPOINT, build_config, open_session
 
@@ -190,8 +190,8 @@ def describe(r: PassageResult) -> str:
             f"dent {dent}{flag}")
 
 
-def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="railtwin-feeder", description=__doc__.split("\n")[0])
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``railtwin feed``."""
     p.add_argument("--train", type=Path, default=Path("recordings/samples/train_160kmh.json"))
     p.add_argument("--site", default="demo", help="site id of the running service")
     p.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
@@ -199,7 +199,16 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--zenoh-config", type=Path, default=None)
     p.add_argument("--flood", action="store_true", help="send all passages at once")
     p.add_argument("--timeout", type=float, default=60.0, help="s to wait for all results")
-    args = p.parse_args(argv)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="railtwin feed", description=__doc__.split("\n")[0])
+    add_arguments(p)
+    return run(p.parse_args(argv))
+
+
+def run(args: argparse.Namespace) -> int:
+    """Stream the train, print a line per result; 0 when every passage got its result."""
     train = load_train(args.train)
     keys = SiteKeys(args.site)
     connect = args.connect or ([] if args.zenoh_config else [DEFAULT_ENDPOINT])

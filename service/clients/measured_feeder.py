@@ -1,12 +1,12 @@
 """Publish measured forces for some wheels of a train and print the twin's diagnoses.
 
-    python -m service.clients.measured_feeder --train recordings/samples/train_160kmh.json \\
+    railtwin feed-measured --train recordings/samples/train_160kmh.json \\
         --site-file examples/site.toml --connect tcp/127.0.0.1:7447 [--axles 0 5 13 20]
         [--save M.json | --load M.json] [--with-train]
 
-The measurements are made by the generator (``service.clients.synthesize``: each wheel's own
+The measurements are made by the generator (``railtwin synthesize``: each wheel's own
 outline, unknown roughness, foundation damping, sensor chain and noise); the wheels'
-passages must already have been sent (``service.clients.feeder``), or come later: the twin pairs
+passages must already have been sent (``railtwin feed``), or come later: the twin pairs
 them by passage id. One line per diagnosis, with the time from publishing the
 measurement to receiving its verdict. ``--save`` only generates (no Zenoh), ``--load``
 publishes saved ones; ``--with-train`` publishes each measurement when its wheel leaves
@@ -30,7 +30,7 @@ from schemas.messages import ServiceError
 from service.clients.feeder import load_train, wait_matching
 from service.clients.synthesize import measure, passage_tread
 from service.physics.diagnosis import Diagnoser
-from service.twin.twin import json_encoding
+from service.wire.encoding import json_encoding
 from service.wire.keyspace import SiteKeys
 from service.wire.site import load_site
 from service.wire.zenoh_session import DEFAULT_ENDPOINT, build_config, open_session
@@ -49,9 +49,8 @@ def describe(d: Diagnosis, latency: float) -> str:
             f"after the measurement")
 
 
-def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m service.clients.measured_feeder",
-                                description=__doc__.split("\n")[0])
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``railtwin feed-measured``."""
     p.add_argument("--train", type=Path, default=Path("recordings/samples/train_160kmh.json"))
     p.add_argument("--site-file", type=Path, default=Path("examples/site.toml"))
     p.add_argument("--connect", action="append", default=[], metavar="ENDPOINT")
@@ -61,7 +60,17 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--load", type=Path, default=None, help="publish measurements saved before")
     p.add_argument("--with-train", action="store_true",
                    help="publish each when its wheel leaves the site (train timing)")
-    a = p.parse_args(argv)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="railtwin feed-measured",
+                                description=__doc__.split("\n")[0])
+    add_arguments(p)
+    return run(p.parse_args(argv))
+
+
+def run(a: argparse.Namespace) -> int:
+    """Make (or load) the measurements and publish them, or only save them."""
     site = load_site(a.site_file)
     train = load_train(a.train)
     keys = SiteKeys(site.site_id)

@@ -1,6 +1,6 @@
-"""Synthetic measured passages for a site: ``python -m service.clients.synthesize``.
+"""Synthetic measured passages for a site: ``railtwin synthesize``.
 
-    python -m service.clients.synthesize --site examples/site.toml --passage P.json
+    railtwin synthesize --site examples/site.toml --passage P.json
         [--flat flat|rounded_flat --length 0.05 --phase 1.0] [--seed 1]
         [--noise 0.03] [--roughness 3e-6] [--damping-ratio 0.15] [--speed-error 0.01]
         --out MEASURED.csv
@@ -51,8 +51,8 @@ def passage_tread(passage: WheelPassage) -> Tread | None:
     return MeasuredTread(wheel_outline(passage), passage.phase)
 
 
-def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m service.clients.synthesize", description=__doc__.split("\n")[0])
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    """The options of ``railtwin synthesize``."""
     p.add_argument("--site", type=Path, required=True)
     p.add_argument("--passage", type=Path, required=True)
     p.add_argument("--flat", choices=("flat", "rounded_flat"), default=None,
@@ -65,7 +65,16 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--damping-ratio", type=float, default=0.15, help="true foundation damping")
     p.add_argument("--speed-error", type=float, default=0.0, help="true/reported speed - 1")
     p.add_argument("--out", type=Path, required=True)
-    a = p.parse_args(argv)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="railtwin synthesize", description=__doc__.split("\n")[0])
+    add_arguments(p)
+    return run(p.parse_args(argv))
+
+
+def run(a: argparse.Namespace) -> int:
+    """Write the synthetic measured force of one passage as CSV (t_s,force_N)."""
     site = load_site(a.site)
     passage = WheelPassage.model_validate_json(a.passage.read_text(encoding="utf-8"))
     R = passage.radius

@@ -25,6 +25,7 @@ from schemas.result import Summary, Transition
 from schemas.scenario import FlatOutline
 from schemas.site import SiteConfig
 from service.physics import inputs as physics_inputs
+from service.physics.port import RailSnapshot
 from sim_core.constraint import warm_up_constraint
 from sim_core.constraint.table import ConstraintTable
 from sim_core.contact_laws import ContactModel
@@ -44,7 +45,7 @@ def wheel_outline(p: WheelPassage) -> WheelOutline:
 
 
 class SitePhysics:
-    """Implements ``service.physics.port.PassageSimulator`` with ``sim_core``."""
+    """Implements ``service.physics.port.SiteModel`` with ``sim_core``."""
 
     def __init__(self, site: SiteConfig) -> None:
         self.site = site
@@ -126,7 +127,7 @@ class SitePhysics:
 
     # --- rail state --------------------------------------------------------------------
 
-    def rail_snapshot(self) -> tuple[RailProfile, int, int]:
+    def rail_snapshot(self) -> RailSnapshot:
         """(profile, revision, passages done): what a restarted worker needs to go on."""
         rail = self._rail
         return rail.profile, rail.revision, self._done

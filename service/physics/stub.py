@@ -10,18 +10,23 @@ from __future__ import annotations
 
 import math
 import time
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from schemas.messages import PassageResult, RailState, WheelPassage
 from schemas.result import Summary
 from schemas.site import SiteConfig
+from service.physics.port import RailSnapshot
+
+if TYPE_CHECKING:  # not imported to run: the stub stays free of numba
+    from sim_core.rail import RailProfile
 
 C_HERTZ = 1.0805e11
 
 
 class StubPhysics:
-    """Implements ``service.physics.port.PassageSimulator``."""
+    """Implements ``service.physics.port.SiteModel``: a flat rail that never dents."""
 
     def __init__(self, site: SiteConfig) -> None:
         self.site = site
@@ -65,3 +70,14 @@ class StubPhysics:
             site_id=self.site.site_id, revision=0, passages_done=self._done, x=x.tolist(),
             y=[0.0] * n, dent=[0.0] * n, max_dent=0.0,
         )
+
+    def warm_up(self) -> float:
+        return 0.0  # nothing to compile
+
+    def rail_snapshot(self) -> RailSnapshot:
+        from sim_core.rail import RailProfile
+
+        return RailProfile.flat(), 0, self._done
+
+    def restore_rail(self, profile: RailProfile, revision: int, done: int) -> None:
+        self._done = done  # the rail never changes

@@ -28,103 +28,58 @@ import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any
 
-from schemas.diagnosis import Diagnosis, MeasuredPassage
-from schemas.messages import PassageResult, PassageSeries, RailState, WheelPassage
+from schemas.diagnosis import MeasuredPassage
+from schemas.messages import PassageResult, RailState, WheelPassage
 from schemas.site import SiteConfig
-from service.physics.measurement_error import MeasurementError
+from service.physics.local import diagnose_with, make_model
 from service.physics.parent_watch import exit_when_orphaned
+from service.physics.port import (
+    BudgetExceededError,
+    DiagnosisOutcome,
+    MeasurementError,
+    PhysicsKind,
+    Series,
+    Simulated,
+    SiteModel,
+    WorkerCrashedError,
+)
 from service.physics.rail_store import RailStore
+from service.wire.encoding import RESULT_ARRAYS, series_json
 from sim_core.rail import RailProfile
 
 if TYPE_CHECKING:
     from multiprocessing.connection import Connection
     from multiprocessing.process import BaseProcess
 
-START_TIMEOUT = 600.0
-"""s a new worker may take to import, compile (first run without a cache) and warm up."""
-
-
-class BudgetExceededError(RuntimeError):
-    """A call took longer than its wall-time budget; the worker was killed and restarted."""
-
-    def __init__(self, what: str, budget: float) -> None:
-        super().__init__(f"{what} aborted: it took longer than the wall-time budget of "
-                         f"{budget:g} s a passage (--passage-budget)")
-        self.budget = budget
-
-
-class WorkerCrashedError(RuntimeError):
-    """The worker process died during a call (e.g. killed for memory); it was restarted."""
-
-
-@dataclass(frozen=True)
-class DiagnosisOutcome:
-    """A diagnosis and the curves the Rerun recording draws."""
-
-    diagnosis: Diagnosis
-    t: list[float]
-    measured: list[float]
-    fitted: list[float]
-    x: list[float]
-    impacts_x: list[float]
-
-
-Series = tuple[bytes, bytes]
-"""The force and the indentation ``PassageSeries`` of a passage, as JSON (fast pacing)."""
-
-ARRAYS = ("x", "force", "indentation", "y_c", "y_ck")
-
-
-def series_json(r: PassageResult, quantity: Literal["force", "indentation"], first: int,
-                last: int, chunk: int, chunks: int) -> bytes:
-    """Samples ``first:last`` of one quantity of ``r`` as a ``PassageSeries`` (JSON)."""
-    values = r.force if quantity == "force" else r.indentation
-    msg = PassageSeries.model_construct(
-        site_id=r.site_id, passage_id=r.passage_id, quantity=quantity,
-        unit="N" if quantity == "force" else "m", sample_rate=r.sample_rate,
-        t_start=r.t_start, speed=r.speed, chunk=chunk, chunks=chunks, first_index=first,
-        samples=len(r.x), x=r.x[first:last], values=values[first:last],
-    )
-    return msg.model_dump_json().encode()
-
-
-def make_physics(kind: str, site: SiteConfig) -> Any:
-    """The physics ``kind`` (``sim_core`` or ``stub``) of ``site``, in this process."""
-    if kind == "stub":
-        from service.physics.stub import StubPhysics
-
-        return StubPhysics(site)
+    from service.physics.diagnosis import Diagnoser
     from service.physics.site_physics import SitePhysics
 
-    return SitePhysics(site)
-
-
-def diagnose_locally(diagnoser: Any, passage: WheelPassage,
-                     measured: MeasuredPassage) -> DiagnosisOutcome:
-    """Run ``service.physics.diagnosis.Diagnoser.diagnose`` and keep what the twin needs (a
-    ``MeasurementError`` goes to the twin as it is)."""
-    diag, curves = diagnoser.diagnose(passage, measured)
-    impacts_x = curves.impacts_t * curves.estimate.speed
-    return DiagnosisOutcome(diag, curves.t.tolist(), curves.measured.tolist(),
-                            curves.fitted.tolist(), curves.x.tolist(), impacts_x.tolist())
+START_TIMEOUT = 600.0
+"""s a new worker may take to import, compile (first run without a cache) and warm up."""
 
 
 # --- the child ---------------------------------------------------------------------------------
 
 
-def _child_main(site: SiteConfig, kind: str, conn: Connection, snapshot: Any,
+def _child_main(site: SiteConfig, kind: PhysicsKind, conn: Connection, snapshot: Any,
                 parent_pid: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the service stops us, not the terminal
     exit_when_orphaned(parent_pid)  # even while compiling, when the pipe is not read
     from pydantic import ValidationError
 
-    physics = make_physics(kind, site)
-    if snapshot is not None and hasattr(physics, "restore_rail"):
+    own: SitePhysics | None = None  # the site's own physics: it diagnoses too
+    physics: SiteModel
+    if kind == "sim_core":
+        from service.physics.site_physics import SitePhysics
+
+        physics = own = SitePhysics(site)
+    else:
+        physics = make_model(kind, site)
+    if snapshot is not None:
         physics.restore_rail(*snapshot)
-    diagnoser: Any = None
+    diagnoser: Diagnoser | None = None
     while True:
         try:
             msg = conn.recv()
@@ -134,34 +89,36 @@ def _child_main(site: SiteConfig, kind: str, conn: Connection, snapshot: Any,
         try:
             if op == "warm_up":
                 start = time.perf_counter()
-                warm_up = getattr(physics, "warm_up", None)
-                if warm_up is not None and msg[1]:
-                    warm_up()
-                if kind == "sim_core" and msg[1]:  # ready before the first measurement
+                if msg[1]:
+                    physics.warm_up()
+                if own is not None and msg[1]:  # ready before the first measurement
                     from service.physics.diagnosis import Diagnoser
 
-                    diagnoser = Diagnoser(site, physics=physics)
+                    diagnoser = Diagnoser(site, physics=own)
                     diagnoser.warm_up()
                 conn.send(("ok", time.perf_counter() - start, physics.rail_state()))
             elif op == "simulate":
                 result = physics.simulate(msg[1])
                 data = result.model_dump_json().encode()
                 dented = None
-                if result.summary.max_dent > 0.0 and hasattr(physics, "rail_snapshot"):
+                if result.summary.max_dent > 0.0:
                     dented = (physics.rail_snapshot(), physics.rail_state())
                 series: Series | None = None
                 if msg[2]:  # the series too; the result crosses without its arrays (its JSON has them)
                     n = len(result.x)
                     series = (series_json(result, "force", 0, n, 0, 1),
                               series_json(result, "indentation", 0, n, 0, 1))
-                    result = result.model_copy(update={key: [] for key in ARRAYS})
+                    result = result.model_copy(update={key: [] for key in RESULT_ARRAYS})
                 conn.send(("ok", result, data, dented, series))
             elif op == "diagnose":
                 if diagnoser is None:
+                    if own is None:
+                        raise ValueError("this physics does not diagnose (it needs the site's "
+                                         "own physics, --physics sim_core)")
                     from service.physics.diagnosis import Diagnoser
 
-                    diagnoser = Diagnoser(site, physics=physics)
-                conn.send(("ok", diagnose_locally(diagnoser, msg[1], msg[2])))
+                    diagnoser = Diagnoser(site, physics=own)
+                conn.send(("ok", diagnose_with(diagnoser, msg[1], msg[2])))
             elif op == "stop":
                 conn.send(("ok",))
                 return
@@ -179,13 +136,13 @@ def _child_main(site: SiteConfig, kind: str, conn: Connection, snapshot: Any,
 
 
 class ProcessPhysics:
-    """``service.physics.port.PassageSimulator`` (and diagnosis) in a worker process.
+    """One ``SiteModel`` (and the diagnosis) in a worker process.
 
     One call at a time; ``rail_state`` never waits for the worker.
     """
 
-    def __init__(self, site: SiteConfig, kind: str = "sim_core", *, budget: float = 30.0,
-                 warm_up: bool = True, start_timeout: float = START_TIMEOUT,
+    def __init__(self, site: SiteConfig, kind: PhysicsKind = "sim_core", *,
+                 budget: float = 30.0, warm_up: bool = True, start_timeout: float = START_TIMEOUT,
                  store: RailStore | None = None) -> None:
         self.site = site
         self.store = store
@@ -285,7 +242,7 @@ class ProcessPhysics:
             raise ValueError(reply[1])
         raise RuntimeError(f"{what}: {reply[1]}")
 
-    # --- PassageSimulator ------------------------------------------------------------------
+    # --- simulation ------------------------------------------------------------------------
 
     def simulate_json(self, passage: WheelPassage) -> tuple[PassageResult, bytes]:
         """The result of ``passage`` and its JSON (made in the worker)."""
@@ -360,7 +317,7 @@ class PhysicsPool:
     passage is simulated.
     """
 
-    def __init__(self, site: SiteConfig, kind: str = "sim_core", *, workers: int = 1,
+    def __init__(self, site: SiteConfig, kind: PhysicsKind = "sim_core", *, workers: int = 1,
                  budget: float = 30.0, warm_up: bool = True,
                  store: RailStore | None = None) -> None:
         if workers < 1:
@@ -382,6 +339,10 @@ class PhysicsPool:
     @property
     def size(self) -> int:
         return len(self.workers)
+
+    @property
+    def concurrent(self) -> bool:
+        return True
 
     @property
     def diagnoses(self) -> bool:
@@ -407,15 +368,14 @@ class PhysicsPool:
         finally:
             self._idle.put(worker)
 
-    def submit(self, passage: WheelPassage, light: bool = False,
-               ) -> Future[tuple[PassageResult, bytes, RailState, Series | None]]:
+    def submit(self, passage: WheelPassage, light: bool = False) -> Future[Simulated]:
         """Simulate ``passage`` on the next free worker; the future holds the result, its JSON,
         the rail right after it (a plastic site's dents as this passage left them) and, when
         ``light``, the series (``ProcessPhysics.simulate_parts``)."""
 
-        def run(w: ProcessPhysics) -> tuple[PassageResult, bytes, RailState, Series | None]:
+        def run(w: ProcessPhysics) -> Simulated:
             result, data, series = w.simulate_parts(passage, light)
-            return result, data, w.rail_state(), series
+            return Simulated(result, data, w.rail_state(), series)
 
         return self._executor.submit(self._with_worker, run)
 
@@ -424,8 +384,9 @@ class PhysicsPool:
         return None if self.store is None else self.store.applied_revision(passage_id)
 
     def simulate_json(self, passage: WheelPassage) -> tuple[PassageResult, bytes]:
-        result, data, _, _ = self.submit(passage).result()
-        return result, data
+        done = self.submit(passage).result()
+        assert done.data is not None  # a worker always sends the result's JSON
+        return done.result, done.data
 
     def simulate(self, passage: WheelPassage) -> PassageResult:
         return self.simulate_json(passage)[0]

@@ -1,0 +1,20 @@
+"""An input as it arrived on Zenoh, before anything was made of it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Inbound:
+    """A payload as it arrived: its key, bytes and the time it came (wall and monotonic)."""
+
+    key: str
+    payload: bytes
+    received_ns: int
+    received_mono: float
+
+    @property
+    def received_at(self) -> float:
+        """UNIX s, as a ``ServiceError`` about this input says when it came."""
+        return self.received_ns / 1e9
