@@ -214,6 +214,23 @@ def test_catch_up_returns_each_diagnosis_since_a_time_on_its_own_key(
     assert got == {} and "finite" in errors[0]
 
 
+def test_a_catch_up_answer_too_long_is_cut_and_says_so(
+        two_sites: tuple[Site, Site, zenoh.Session], monkeypatch: pytest.MonkeyPatch) -> None:
+    import service.twin.twin
+
+    monkeypatch.setattr(service.twin.twin, "MAX_REPLIES", 2)
+    a, _, client = two_sites
+    for i in range(3):
+        a.twin.diagnoses.add(f"c{i}", made_at=100.0 + i, timestamp=None,
+                             data=b'{"site_id": "km12", "passage_id": "c%d"}' % i)
+    replies = list(client.get("railtwin/km12/diagnoses?since=0", timeout=5.0,
+                              accept_replies=zenoh.ReplyKeyExpr.ANY))
+    assert sorted(str(r.ok.key_expr) for r in replies if r.ok is not None) == [
+        "railtwin/km12/diagnosis/c0", "railtwin/km12/diagnosis/c1"]   # the oldest made
+    (err,) = [r.err.payload.to_string() for r in replies if r.err is not None]
+    assert "cut at 2" in err and "later since" in err
+
+
 def test_catch_up_survives_a_restart_of_the_twin(tmp_path: Path) -> None:
     path = tmp_path / "km12-diagnoses.sqlite"
     first = Site("km12", DiagnosisStore(path))

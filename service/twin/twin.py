@@ -41,7 +41,7 @@ from schemas.site import SiteConfig
 from service.physics.port import PhysicsPort
 from service.recording.input_journal import InputJournal
 from service.recording.recorder import RecorderFront
-from service.twin.diagnoses import DiagnosisStore, SinceError, parse_since
+from service.twin.diagnoses import MAX_REPLIES, DiagnosisStore, SinceError, parse_since
 from service.twin.inbound import Inbound
 from service.twin.intake import Intake, Stop
 from service.twin.kept_passages import KeptPassages
@@ -196,9 +196,13 @@ class Twin:
                     "accept_replies=zenoh.ReplyKeyExpr.ANY (or add the parameter _anyke: "
                     "?since=T;_anyke)")
                 return
-            for pid, data in self.diagnoses.since(since):
+            rows = self.diagnoses.since(since, limit=MAX_REPLIES)
+            for pid, data in rows:
                 query.reply(self.keys.diagnosis(pid), data,
                             encoding=self.output.encodings[Diagnosis])
+            if len(rows) >= MAX_REPLIES:  # the oldest first: the querier asks again from there
+                query.reply_err(f"{self.keys.diagnoses}: answer cut at {MAX_REPLIES} diagnoses "
+                                "(the oldest made first): ask again with a later since")
 
     def health(self) -> Health:
         mcap_path = self.recorder.mcap_path() if self.recorder is not None else None
