@@ -339,3 +339,12 @@ def test_worked_examples(name: str) -> None:
 
     result = doctest.testmod(importlib.import_module(name))
     assert result.attempted > 0 and result.failed == 0
+
+
+def test_the_measured_feeder_names_the_wheel_of_each_diagnosis() -> None:
+    from service.clients.measured_feeder import describe
+
+    d = stand_in_diagnoser("km12", passage("p9", 1.7e9), measured("p9")).diagnosis
+    assert "(wheel" not in describe(d, 0.1)
+    named = describe(d.model_copy(update={"wheel": WHEEL}), 0.1)
+    assert named.startswith("diagnosis p9 (wheel 31-80-4751-123-4/2/left): OK")
