@@ -23,7 +23,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import IO, Any, NoReturn, cast
 
-from service.cli import clients, demo, diagnose, recover, replay, serve
+from service.cli import clients, demo, diagnose, recover, replay, router, serve
 from service.cli.common import (
     EXIT_CODES_HELP,
     EXIT_FAILURE,
@@ -370,18 +370,31 @@ def register_schema(subparsers: SubParsers) -> None:
         help="print the JSON Schemas of the contract",
         description=(
             "Print the JSON Schema of every top-level model as one JSON object "
-            "{name: schema}, or of the model NAME alone."
+            "{name: schema}, or of the model NAME alone; with --out DIR, write one file "
+            "<Name>.schema.json per model there (as committed in schemas/json/)."
         ),
         epilog=EXIT_CODES_HELP,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("name", nargs="?", metavar="NAME", help="model name, e.g. Scenario, Result")
     p.add_argument("--indent", type=int, default=2, help="JSON indentation (default 2)")
+    p.add_argument("--out", type=Path, default=None, metavar="DIR",
+                   help="write every model's schema into DIR (e.g. schemas/json) instead")
     p.set_defaults(func=cmd_schema)
 
 
 def cmd_schema(args: argparse.Namespace) -> int:
-    from schemas import all_json_schemas
+    from schemas import all_json_schemas, export
+
+    if args.out is not None:
+        if args.name is not None:
+            raise CommandError("--out writes every schema: give no NAME with it", EXIT_USAGE)
+        try:
+            paths = export.write(args.out)
+        except OSError as exc:
+            raise CommandError(f"cannot write {args.out}: {exc.strerror or exc}") from None
+        sys.stdout.write(f"wrote {len(paths)} JSON Schemas to {args.out}\n")
+        return EXIT_OK
 
     schemas = all_json_schemas()
     doc: Any = schemas
@@ -443,10 +456,10 @@ BUILTIN_COMMANDS = (register_simulate, register_schema, register_figures)
 SERVICE_COMMANDS: tuple[Callable[[Any], Any], ...] = (
     serve.register, clients.register_feed, clients.register_feed_measured,
     clients.register_synthesize, replay.register, diagnose.register, recover.register,
-    demo.register,
+    demo.register, router.register,
 )
 """The service's subcommands: serve, feed, feed-measured, synthesize, replay, diagnose,
-recover, demo."""
+recover, demo, router."""
 
 
 def build_parser() -> argparse.ArgumentParser:
