@@ -1,0 +1,126 @@
+"""Helpers and fixtures of the fleet tests: a real PostgreSQL, stores, diagnoses.
+
+PostgreSQL comes from the ``pgserver`` wheel (a test extra: PostgreSQL 16 binaries,
+started in a temporary directory), else from the OS's ``initdb``/``pg_ctl`` (not as
+root); a test needing it is skipped, saying so, only when neither can be had.
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+import shutil
+import subprocess
+import tempfile
+import time
+import uuid
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from service.fleet.entry import Entry
+from service.fleet.store import Store, open_store
+
+
+def _os_postgres(tmp: Path) -> tuple[str, subprocess.Popen[bytes] | None] | None:
+    bins = sorted(glob.glob("/usr/lib/postgresql/*/bin/initdb"))
+    if not bins or os.geteuid() == 0:
+        return None
+    bindir = Path(bins[-1]).parent
+    data = tmp / "data"
+    subprocess.run([str(bindir / "initdb"), "-D", str(data), "-U", "postgres", "--auth=trust"],
+                   check=True, capture_output=True)
+    sock = tmp / "sock"
+    sock.mkdir()
+    subprocess.run([str(bindir / "pg_ctl"), "-D", str(data), "-w", "-o",
+                    f"-k {sock} -c listen_addresses=''", "start"], check=True,
+                   capture_output=True)
+    return f"postgresql://postgres@/postgres?host={sock}", None
+
+
+@pytest.fixture(scope="session")
+def pg_admin_uri() -> Iterator[str]:
+    """A URI of a PostgreSQL server started for this test session."""
+    tmp = Path(tempfile.mkdtemp(prefix="railtwin-pg-"))
+    server: Any = None
+    uri: str | None = None
+    why = ""
+    try:
+        import pgserver
+
+        server = pgserver.get_server(str(tmp), cleanup_mode="stop")
+        uri = server.get_uri()
+    except Exception as exc:  # not installed, or cannot run here
+        why = f"pgserver: {type(exc).__name__}: {exc}"
+        try:
+            found = _os_postgres(tmp)
+            uri = found[0] if found else None
+        except (OSError, subprocess.CalledProcessError) as exc2:
+            why += f"; OS PostgreSQL: {exc2}"
+    if uri is None:
+        pytest.skip("no PostgreSQL server can be had here (pip install pgserver, or the OS "
+                    f"package postgresql as a non-root user): {why}")
+    try:
+        yield uri
+    finally:
+        if server is not None:
+            server.cleanup()
+        else:
+            for pg_ctl in glob.glob("/usr/lib/postgresql/*/bin/pg_ctl"):
+                subprocess.run([pg_ctl, "-D", str(tmp / "data"), "stop"], check=False,
+                               capture_output=True)
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def fresh_pg_database(admin_uri: str) -> str:
+    """A new empty database on the server; its URI."""
+    import psycopg
+
+    name = "t_" + uuid.uuid4().hex[:12]
+    with psycopg.connect(admin_uri, autocommit=True) as conn:
+        conn.execute(f"CREATE DATABASE {name}")
+    return admin_uri.replace("/postgres?", f"/{name}?", 1)
+
+
+@pytest.fixture(params=["sqlite", "postgresql"])
+def db_url(request: pytest.FixtureRequest, tmp_path: Path) -> str:
+    """A fresh database URL of each kind."""
+    if request.param == "sqlite":
+        return str(tmp_path / "fleet.sqlite")
+    return fresh_pg_database(request.getfixturevalue("pg_admin_uri"))
+
+
+@pytest.fixture
+def store(db_url: str) -> Iterator[Store]:
+    s = open_store(db_url)
+    try:
+        yield s
+    finally:
+        s.close()
+
+
+DAY = 86400.0
+T0 = 1_790_000_000.0  # 2026-09-21
+
+
+def make_entry(site: str, pid: str, *, wheel: str | None = "V1/1/left", day: float = 0.0,
+               verdict: str = "ok", length: float | None = None, half_width: float = 0.002,
+               force_line: float | None = None) -> Entry:
+    """An Entry as a Diagnosis of that wheel would give (no zenoh, no schemas needed)."""
+    flat = None if length is None else {
+        "kind": "flat", "length": length, "depth": length**2 / 16 / 0.46, "phase": 1.0,
+        "length_low": length - half_width, "length_high": length + half_width}
+    body = {"site_id": site, "passage_id": pid, "flat": flat, "verdict": verdict,
+            "reasons": [] if verdict == "ok" else [f"{verdict} reason"],
+            "peak_force_measured": 150e3, "peak_force_at_line_speed": force_line}
+    import json
+
+    vehicle, wheelset, side = wheel.split("/") if wheel else (None, None, None)
+    t = T0 + day * DAY
+    return Entry(site, pid, wheel, vehicle, int(wheelset) if wheelset else None, side, t,
+                 verdict, None if flat is None else "flat", length,
+                 None if flat is None else flat["length_low"],
+                 None if flat is None else flat["length_high"], 150e3, force_line, None, None,
+                 time.time(), json.dumps(body))
