@@ -124,3 +124,71 @@ def make_entry(site: str, pid: str, *, wheel: str | None = "V1/1/left", day: flo
                  None if flat is None else flat["length_low"],
                  None if flat is None else flat["length_high"], 150e3, force_line, None, None,
                  time.time(), json.dumps(body))
+
+
+def diagnosis_json(site: str, pid: str, wheel: str | None, *, day: float,
+                   verdict: str = "ok", length: float | None = None,
+                   half_width: float = 0.002, force_line: float | None = 250e3) -> str:
+    """A Diagnosis message (schema 1.1: wheel and timestamp), validated by the model."""
+    from schemas.diagnosis import Diagnosis
+
+    flat = None if length is None else {
+        "kind": "flat", "length": length, "depth": length**2 / 16 / 0.46, "phase": 1.0,
+        "length_low": max(length - half_width, 0.0), "length_high": length + half_width}
+    doc: dict[str, Any] = {
+        "site_id": site, "passage_id": pid, "timestamp": T0 + day * DAY, "flat": flat,
+        "verdict": verdict, "reasons": [] if verdict == "ok" else [f"{verdict} by test"],
+        "peak_force_measured": 150e3, "peak_force_fit": 151e3, "fit_rms": 2e3,
+        "peak_force_at_line_speed": force_line, "wall_time": 0.5,
+    }
+    if wheel is not None:
+        v, ws, side = wheel.split("/")
+        doc["wheel"] = {"vehicle_id": v, "wheelset": int(ws), "side": side}
+    return Diagnosis.model_validate(doc).model_dump_json()
+
+
+class FakeTwin:
+    """A site twin's fleet-facing side: publishes diagnoses, keeps them in its log and
+    answers ``railtwin/<site>/diagnoses?since=T`` (one reply per diagnosis whose passage
+    time is >= T, each on its own key), with its liveliness token."""
+
+    def __init__(self, session: Any, site: str) -> None:
+        import zenoh
+
+        self.session = session
+        self.site = site
+        self.log: list[tuple[float, str, str]] = []  # (timestamp, passage_id, json)
+        self.queries: list[float] = []
+        self._q = session.declare_queryable(f"railtwin/{site}/diagnoses", self._answer)
+        self._token = session.liveliness().declare_token(f"railtwin/{site}/alive")
+        self._json = zenoh.Encoding.APPLICATION_JSON
+
+    def _answer(self, query: Any) -> None:
+        with query:
+            since = float(query.parameters.get("since") or 0.0)
+            self.queries.append(since)
+            for t, pid, text in list(self.log):
+                if t >= since:
+                    query.reply(f"railtwin/{self.site}/diagnosis/{pid}", text,
+                                encoding=self._json)
+
+    def diagnose(self, pid: str, text: str, publish: bool = True) -> None:
+        import json
+
+        self.log.append((json.loads(text)["timestamp"], pid, text))
+        if publish:
+            self.session.put(f"railtwin/{self.site}/diagnosis/{pid}", text,
+                             encoding=self._json)
+
+    def close(self) -> None:
+        self._token.undeclare()
+        self._q.undeclare()
+
+
+def wait_for(predicate: Any, timeout: float = 20.0, what: str = "condition") -> None:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return
+        time.sleep(0.05)
+    raise AssertionError(f"timed out after {timeout} s waiting for {what}")

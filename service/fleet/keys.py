@@ -26,6 +26,8 @@ RESULTS_SUB = f"{ROOT}/*/result/**"
 CATCH_UP_SELECTOR = f"{ROOT}/*/diagnoses"
 """Each twin's queryable answering ``?since=<unix s>`` with the diagnoses it made since."""
 HEALTH_SELECTOR = f"{ROOT}/*/health"
+ALIVE_SUB = f"{ROOT}/*/alive"
+"""Twins' liveliness tokens: a token appearing triggers a catch-up from that site."""
 
 _CHUNK = re.compile(r"^[A-Za-z0-9_.\-]{1,96}$")
 _WHEEL_ID = re.compile(r"^([A-Za-z0-9_.\-]{1,96})/([1-9][0-9]{0,5})/(left|right)$")
@@ -44,6 +46,10 @@ def parse_wheel_id(text: str) -> tuple[str, int, str]:
             "digits, _ . -; wheelset: an integer >= 1; side: left or right)"
         )
     return m.group(1), int(m.group(2)), m.group(3)
+
+
+def catch_up_key(site_id: str) -> str:
+    return f"{ROOT}/{site_id}/diagnoses"
 
 
 def alarm_key(vehicle_id: str, wheelset: int, side: str) -> str:

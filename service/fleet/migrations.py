@@ -23,6 +23,27 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+SITE_BACKFILL = """INSERT INTO site (site_id, last_timestamp, last_passage_id, last_verdict, diagnoses)
+SELECT d.site_id, d.timestamp, d.passage_id, d.verdict, c.n
+FROM diagnosis d
+JOIN (SELECT site_id, MAX(timestamp) AS t, COUNT(*) AS n FROM diagnosis GROUP BY site_id) c
+  ON d.site_id = c.site_id AND d.timestamp = c.t
+WHERE d.passage_id = (SELECT MIN(p.passage_id) FROM diagnosis p
+                      WHERE p.site_id = c.site_id AND p.timestamp = c.t)"""
+"""Each site's row from the diagnoses stored (its latest passage, its count)."""
+
+WHEEL_BACKFILL = """INSERT INTO wheel (wheel_id, vehicle_id, wheelset, side, last_timestamp, last_verdict,
+  alarmed_level, episode)
+SELECT d.wheel_id, d.vehicle_id, d.wheelset, d.side, d.timestamp, d.verdict, 0, 0
+FROM diagnosis d
+JOIN (SELECT wheel_id, MAX(timestamp) AS t FROM diagnosis WHERE wheel_id IS NOT NULL
+      GROUP BY wheel_id) m
+  ON d.wheel_id = m.wheel_id AND d.timestamp = m.t
+WHERE d.site_id || '/' || d.passage_id = (
+    SELECT MIN(p.site_id || '/' || p.passage_id) FROM diagnosis p
+    WHERE p.wheel_id = m.wheel_id AND p.timestamp = m.t)"""
+"""Each wheel's row from the diagnoses stored (its latest passage; no alarm yet)."""
+
 
 @dataclass(frozen=True)
 class Migration:
@@ -76,23 +97,8 @@ MIGRATIONS: tuple[Migration, ...] = (
             episode INTEGER NOT NULL DEFAULT 0
         )""",
         "CREATE INDEX wheel_vehicle ON wheel (vehicle_id)",
-        """INSERT INTO site (site_id, last_timestamp, last_passage_id, last_verdict, diagnoses)
-           SELECT d.site_id, d.timestamp, d.passage_id, d.verdict,
-                  (SELECT COUNT(*) FROM diagnosis c WHERE c.site_id = d.site_id)
-           FROM diagnosis d
-           WHERE d.timestamp = (SELECT MAX(m.timestamp) FROM diagnosis m
-                                WHERE m.site_id = d.site_id)
-             AND d.passage_id = (SELECT MIN(p.passage_id) FROM diagnosis p
-                                 WHERE p.site_id = d.site_id AND p.timestamp = d.timestamp)""",
-        """INSERT INTO wheel (wheel_id, vehicle_id, wheelset, side, last_timestamp, last_verdict)
-           SELECT d.wheel_id, d.vehicle_id, d.wheelset, d.side, d.timestamp, d.verdict
-           FROM diagnosis d
-           WHERE d.wheel_id IS NOT NULL
-             AND d.timestamp = (SELECT MAX(m.timestamp) FROM diagnosis m
-                                WHERE m.wheel_id = d.wheel_id)
-             AND d.site_id || '/' || d.passage_id = (
-                 SELECT MIN(p.site_id || '/' || p.passage_id) FROM diagnosis p
-                 WHERE p.wheel_id = d.wheel_id AND p.timestamp = d.timestamp)""",
+        SITE_BACKFILL,
+        WHEEL_BACKFILL,
     )),
     Migration(3, "alarms raised, once per (wheel, kind, level, episode)", (
         """CREATE TABLE alarm (

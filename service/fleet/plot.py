@@ -113,10 +113,13 @@ def panel(doc: dict[str, Any], quantity: str, title: str, scale: float, unit: st
         for c in trend["crossings"]:
             if c["status"] == "forecast" and c["at"] is not None and c["at"] <= tb:
                 x = px(c["at"])
+                right = x > W - RIGHT - 140  # near the right edge: label to the left
                 out.append(f'<line class="crossing" x1="{x:.1f}" y1="{TOP}" x2="{x:.1f}" '
                            f'y2="{H - BOTTOM}" stroke="{LIMIT_COLOURS[c["level"]]}" '
-                           f'stroke-width="1"/><text x="{x + 3:.1f}" y="{TOP + 12}" '
-                           f'font-size="11" fill="{LIMIT_COLOURS[c["level"]]}">{c["level"]} '
+                           f'stroke-width="1"/><text x="{x - 3 if right else x + 3:.1f}" '
+                           f'y="{TOP + 24 if right else TOP + 12}" font-size="11" '
+                           f'text-anchor="{"end" if right else "start"}" '
+                           f'fill="{LIMIT_COLOURS[c["level"]]}">{c["level"]} '
                            f'{time.strftime("%Y-%m-%d", time.gmtime(c["at"]))}</text>')
     for t, v, lo, hi in pts:
         x = px(t)

@@ -5,10 +5,12 @@
 - a callback only queues the payload; one ingest thread validates, stores in batches
   (one transaction each), evaluates the touched wheels' alarms and publishes each new
   alarm on ``railtwin/fleet/alarm/<vehicle_id>/<wheelset>/<side>`` (and logs it);
-- on start, after subscribing, catches up: queries ``railtwin/*/diagnoses?since=T`` with
-  T = min(latest passage time, latest receipt) stored - ``catch_up_margin`` (0 when the
-  store is empty); every reply goes through the same queue, and the store's key
-  (site_id, passage_id) drops what it already has;
+- catches up: on start (after subscribing) it queries ``railtwin/*/diagnoses?since=T``,
+  and again ``railtwin/<site>/diagnoses?since=T`` whenever a twin's liveliness token
+  ``railtwin/<site>/alive`` appears (a twin reachable only later, restarted, or back after
+  a network partition), with T = min(latest passage time, latest receipt) stored -
+  ``catch_up_margin`` (0 when the store is empty); every reply goes through the same queue,
+  and the store's key (site_id, passage_id) drops what it already has;
 - queryables ``railtwin/fleet/wheel/<vehicle_id>/<wheelset>/<side>`` (the wheel's history
   document, ``service.fleet.history``; a wildcard query gets one reply per known wheel, at
   most ``MAX_WHEEL_REPLIES``) and ``railtwin/fleet/alarms`` (open alarms; ``?all=true``:
@@ -88,6 +90,7 @@ class FleetService:
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
         self._declared: list[Any] = []
+        self._catch_up_requests: queue.Queue[str] = queue.Queue()
 
     # --- life cycle --------------------------------------------------------------------
 
@@ -99,13 +102,17 @@ class FleetService:
             s.declare_queryable(keys.WHEEL_QUERYABLE, self._on_wheel_query),
             s.declare_queryable(keys.ALARMS_KEY, self._on_alarms_query),
         ]
-        for target, name in ((self._ingest_loop, "fleet-ingest"),
-                             (self._health_loop, "fleet-health")):
+        loops = [(self._ingest_loop, "fleet-ingest"), (self._health_loop, "fleet-health")]
+        if catch_up:
+            loops.append((self._catch_up_loop, "fleet-catch-up"))
+        for target, name in loops:
             t = threading.Thread(target=target, name=name, daemon=True)
             t.start()
             self._threads.append(t)
         if catch_up:
             self.catch_up()
+            self._declared.append(s.liveliness().declare_subscriber(
+                keys.ALIVE_SUB, self._on_alive, history=True))
 
     def stop(self) -> None:
         self._stop.set()
@@ -141,13 +148,29 @@ class FleetService:
             return 0.0
         return max(0.0, min(latest) - self.catch_up_margin)
 
-    def catch_up(self) -> int:
-        """Ask every twin for what it diagnosed since the latest stored time; replies queued."""
+    def _on_alive(self, sample: zenoh.Sample) -> None:
+        if sample.kind == zenoh.SampleKind.PUT:
+            site = keys.site_of_key(str(sample.key_expr))
+            if site is not None:
+                self._catch_up_requests.put(site)
+
+    def _catch_up_loop(self) -> None:
+        while not self._stop.is_set():
+            try:
+                site = self._catch_up_requests.get(timeout=0.2)
+            except queue.Empty:
+                continue
+            self.catch_up(site)
+
+    def catch_up(self, site: str | None = None) -> int:
+        """Ask the twin of ``site`` (every twin if None) for what it diagnosed since the
+        latest stored time; the replies are queued for storing. How many came."""
         since = self.catch_up_since()
+        selector = keys.CATCH_UP_SELECTOR if site is None else keys.catch_up_key(site)
         n = 0
         try:
             replies = self.session.get(
-                f"{keys.CATCH_UP_SELECTOR}?since={since:.3f}", timeout=self.catch_up_timeout,
+                f"{selector}?since={since:.3f}", timeout=self.catch_up_timeout,
                 accept_replies=zenoh.ReplyKeyExpr.ANY,
                 consolidation=zenoh.ConsolidationMode.NONE,
                 target=zenoh.QueryTarget.ALL,
@@ -163,7 +186,7 @@ class FleetService:
         except zenoh.ZError as exc:
             log.warning("catch-up query failed: %s", exc)
         self.counters.caught_up += n
-        log.info("catch-up since %.0f: %d diagnoses received from the twins", since, n)
+        log.info("catch-up from %s since %.0f: %d diagnoses received", selector, since, n)
         return n
 
     # --- ingest ------------------------------------------------------------------------

@@ -26,7 +26,13 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 from service.fleet.entry import Entry
-from service.fleet.migrations import LATEST, MIGRATIONS, MIGRATIONS_TABLE
+from service.fleet.migrations import (
+    LATEST,
+    MIGRATIONS,
+    MIGRATIONS_TABLE,
+    SITE_BACKFILL,
+    WHEEL_BACKFILL,
+)
 
 Dialect = Literal["sqlite", "postgresql"]
 
@@ -187,6 +193,35 @@ class Store:
                     self._exec(cur, _WHEEL_UPSERT, (e.wheel_id, e.vehicle_id, e.wheelset,
                                                     e.side, e.timestamp, e.verdict))
         return new
+
+    def bulk_insert(self, entries: Sequence[Entry]) -> None:
+        """Import many diagnoses at once (another store's, a benchmark's): the rows in one
+        statement (PostgreSQL: COPY), then the site and wheel tables rebuilt from them
+        (wheels keep their alarm state). No alarm is evaluated. Rows already stored are kept.
+        """
+        rows = [tuple(getattr(e, c) for c in ENTRY_COLUMNS) for e in entries]
+        with self._transaction() as cur:
+            if self.dialect == "sqlite":
+                cur.executemany(_INSERT, rows)
+            else:
+                self._exec(cur, "CREATE TEMP TABLE import_diagnosis (LIKE diagnosis) "
+                           "ON COMMIT DROP")
+                with cur.cursor().copy(f"COPY import_diagnosis ({_COLS}) FROM STDIN") as copy:
+                    for r in rows:
+                        copy.write_row(r)
+                self._exec(cur, f"INSERT INTO diagnosis ({_COLS}) SELECT {_COLS} FROM "
+                           "import_diagnosis ON CONFLICT (site_id, passage_id) DO NOTHING")
+            self._exec(cur, "DELETE FROM site")
+            self._exec(cur, SITE_BACKFILL)
+            self._exec(cur, "CREATE TEMP TABLE wheel_state AS SELECT wheel_id, alarmed_level, "
+                       "episode FROM wheel")
+            self._exec(cur, "DELETE FROM wheel")
+            self._exec(cur, WHEEL_BACKFILL)
+            self._exec(cur, "UPDATE wheel SET alarmed_level = (SELECT s.alarmed_level FROM "
+                       "wheel_state s WHERE s.wheel_id = wheel.wheel_id), episode = (SELECT "
+                       "s.episode FROM wheel_state s WHERE s.wheel_id = wheel.wheel_id) "
+                       "WHERE wheel_id IN (SELECT wheel_id FROM wheel_state)")
+            self._exec(cur, "DROP TABLE wheel_state")
 
     def set_speed(self, site_id: str, passage_id: str, speed: float) -> bool:
         """Fill a stored diagnosis's speed (from its PassageResult); True if one was."""
