@@ -23,8 +23,14 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
-from schemas._base import Finite, NonNegative, Positive, StrictModel, field_error
-from schemas.messages import MESSAGE_SCHEMA_VERSION, Identifier, Version
+from schemas._base import Finite, MessageModel, NonNegative, Positive, StrictModel, field_error
+from schemas.messages import (
+    MESSAGE_SCHEMA_VERSION,
+    Identifier,
+    Version,
+    VersionedMessage,
+    WheelRef,
+)
 
 MAX_MEASURED_SAMPLES = 2_000_000
 """Cap on the samples of one measured passage (200 s at 10 kHz): larger is refused."""
@@ -40,7 +46,7 @@ DEFAULT_INSPECT_LENGTH = 0.04
 DEFAULT_REMOVE_LENGTH = 0.06
 
 
-class MeasuredPassage(StrictModel):
+class MeasuredPassage(VersionedMessage):
     """The site's measured vertical wheel–rail force of one passage.
 
     Sample k was taken at t = t_start + k / sample_rate, with t = 0 when the wheel
@@ -74,7 +80,7 @@ FlatKindName = Literal["flat", "rounded_flat"]
 Verdict = Literal["ok", "watch", "inspect", "remove"]
 
 
-class FlatFinding(StrictModel):
+class FlatFinding(MessageModel):
     """The flat the fit found."""
 
     kind: FlatKindName = Field(description="flat = fresh (ideal), rounded_flat = worn (haversine)")
@@ -85,12 +91,21 @@ class FlatFinding(StrictModel):
     length_high: Positive = Field(description="upper end of the length interval, m")
 
 
-class Diagnosis(StrictModel):
-    """The twin's verdict on one measured passage."""
+class Diagnosis(VersionedMessage):
+    """The twin's verdict on one measured passage; in the fleet, (site_id, passage_id) is
+    its id."""
 
     schema_version: Version = MESSAGE_SCHEMA_VERSION
     site_id: Identifier
     passage_id: Identifier
+    wheel: WheelRef | None = Field(
+        default=None, description="the passage's wheel, echoed; null when the site did not "
+        "identify it"
+    )
+    timestamp: Finite | None = Field(
+        default=None, description="the passage's timestamp, echoed, UNIX s; always set by 1.1 "
+        "producers, absent only in 1.0 messages"
+    )
     flat: FlatFinding | None = Field(description="null when no flat is found")
     verdict: Verdict
     reasons: list[str] = Field(description="each limit that was passed, named, with the values")
