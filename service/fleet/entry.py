@@ -90,10 +90,11 @@ def entry_from_payload(payload: bytes | str, received_at: float) -> Entry:
 
 
 def entry_from_diagnosis(diag: Diagnosis, received_at: float) -> Entry:
-    timestamp = getattr(diag, "timestamp", None)
+    timestamp = diag.timestamp
     if timestamp is None or not math.isfinite(timestamp):
-        raise EntryError(f"diagnosis {diag.site_id}/{diag.passage_id} has no timestamp")
-    wheel = getattr(diag, "wheel", None)
+        raise EntryError(f"diagnosis {diag.site_id}/{diag.passage_id} has no timestamp (a "
+                         "1.0 message): the fleet cannot place it in a wheel's history")
+    wheel = diag.wheel
     flat = diag.flat
     return Entry(
         site_id=diag.site_id, passage_id=diag.passage_id,
