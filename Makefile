@@ -61,13 +61,13 @@ test: $(STAMP)
 	echo "make test: all checks passed"
 
 demo: $(STAMP)
-	$(BIN)/python -m service.demo
+	$(BIN)/python -m service.cli.demo
 
 bench: $(STAMP)
 	$(BIN)/python -m benchmarks.run_all
 
 fleet-demo: $(STAMP)
-	$(BIN)/python -m service.fleet.demo
+	$(BIN)/python -m service.cli.fleet_demo
 
 fleet-bench: $(STAMP)
 	$(BIN)/python -m benchmarks.fleet_bench

@@ -125,7 +125,7 @@ def bench_ingest(db: str, sites: int, diagnoses: int, tmp: Path, label: str) -> 
     import zenoh
 
     from service.fleet.store import open_store
-    from service.zenoh_session import build_config, free_tcp_endpoint
+    from service.wire.zenoh_session import build_config, free_tcp_endpoint
 
     router = free_tcp_endpoint()
     payloads: list[tuple[int, str, str]] = []
@@ -138,9 +138,9 @@ def bench_ingest(db: str, sites: int, diagnoses: int, tmp: Path, label: str) -> 
             payloads.append((i, f"railtwin/{site}/diagnosis/{pid}",
                              _diagnosis(site, pid, _wheel(k), T0 + j * 600.0 + i, _flat(k, j))))
     n = len(payloads)
-    with _proc(["-m", "service.fleet.demo", "--router", router], tmp / f"router-{label}.log",
+    with _proc(["-m", "service.cli.fleet_demo", "--router", router], tmp / f"router-{label}.log",
                ready="router: listening"), \
-            _proc(["-m", "service.fleet.cli", "serve", "--mode", "client", "--connect", router,
+            _proc(["-m", "service.cli.fleet", "serve", "--mode", "client", "--connect", router,
                    "--db", db, "--no-catch-up"], tmp / f"fleet-{label}.log",
                   ready="fleet: ready") as fleet:
         sessions = [zenoh.open(build_config(connect=[router], mode="client"))
@@ -184,7 +184,7 @@ def bench_query(db: str, rows: int, wheels: int, tmp: Path, label: str,
     from service.fleet.history import wheel_document
     from service.fleet.limits import FleetLimits
     from service.fleet.store import open_store
-    from service.zenoh_session import build_config, free_tcp_endpoint
+    from service.wire.zenoh_session import build_config, free_tcp_endpoint
 
     store = open_store(db)
     per_wheel = rows // wheels
@@ -226,7 +226,7 @@ def bench_query(db: str, rows: int, wheels: int, tmp: Path, label: str,
     store.close()
     router = free_tcp_endpoint()
     zen_t: list[float] = []
-    with _proc(["-m", "service.fleet.cli", "serve", "--listen", router, "--db", db,
+    with _proc(["-m", "service.cli.fleet", "serve", "--listen", router, "--db", db,
                 "--no-catch-up"], tmp / f"fleet-query-{label}.log", ready="fleet: ready") as fleet, \
             zenoh.open(build_config(connect=[router])) as client:
         for i in range(samples + 20):

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import zenoh
 
-from service.zenoh_session import build_config, free_tcp_endpoint
+from service.wire.zenoh_session import build_config, free_tcp_endpoint
 from tests.conftest import ROOT
 from tests.fleet_support import T0, FakeTwin, diagnosis_json, wait_for
 
@@ -22,7 +22,7 @@ from tests.fleet_support import T0, FakeTwin, diagnosis_json, wait_for
 def _start_fleet(endpoint: str, db: Path, log: Path) -> subprocess.Popen[bytes]:
     out = log.open("ab")
     proc = subprocess.Popen(
-        [sys.executable, "-m", "service.fleet.cli", "serve", "--connect", endpoint, "--db",
+        [sys.executable, "-m", "service.cli.fleet", "serve", "--connect", endpoint, "--db",
          str(db)], cwd=ROOT, stdout=out, stderr=subprocess.STDOUT)
     wait_for(lambda: b"fleet: ready" in log.read_bytes().split(b"KILLED")[-1] or
              proc.poll() is not None, timeout=60, what="the fleet service to be ready")

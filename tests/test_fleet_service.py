@@ -11,10 +11,10 @@ from typing import Any
 import pytest
 import zenoh
 
-from service.fleet import cli as fleet_cli
+from service.cli import fleet as fleet_cli
 from service.fleet.service import FleetService
 from service.fleet.store import open_store
-from service.zenoh_session import build_config, free_tcp_endpoint
+from service.wire.zenoh_session import build_config, free_tcp_endpoint
 from tests.fleet_support import FakeTwin, diagnosis_json, wait_for
 
 
@@ -33,6 +33,9 @@ def net(tmp_path: Path) -> Iterator[dict[str, Any]]:
     svc = FleetService(fleet_s, store, horizon=30 * 86400.0)
     alarms: list[zenoh.Sample] = []
     sub = client_s.declare_subscriber("railtwin/fleet/alarm/**", alarms.append)
+    probe = fleet_s.declare_publisher("railtwin/fleet/alarm/V1/1/left")
+    wait_for(lambda: probe.matching_status.matching, what="the alarm subscriber known")
+    probe.undeclare()
     svc.start()
     try:
         yield {"endpoint": endpoint, "svc": svc, "store": store, "a": a, "b": b,

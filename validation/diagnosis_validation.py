@@ -29,8 +29,8 @@ import numpy as np
 from schemas.diagnosis import MeasuredPassage
 from schemas.messages import WheelPassage
 from schemas.site import SiteConfig
-from service.diagnosis import Diagnoser
-from service.synthesize import measure
+from service.clients.synthesize import measure
+from service.physics.diagnosis import Diagnoser
 from sim_core.diagnosis.forward import Flat, MeasuredTread, Tread
 from sim_core.wheel_roughness import bundled_measurement, load_wheel_roughness
 

@@ -12,8 +12,8 @@
 | ``service`` | ``FleetService``: subscribe, catch up, store, alarm, answer queries |
 | ``dashboard`` | the web page (``--http``): sites, alarms, vehicles, a wheel's plot |
 | ``plot`` | the wheel page's server-side SVG plot |
-| ``cli`` | ``railtwin fleet serve`` and ``railtwin fleet wheel`` |
-| ``demo`` | ``make fleet-demo`` |
 
+The command line is ``service.cli.fleet`` (``railtwin fleet serve|wheel|alarms``), the
+demo ``service.cli.fleet_demo`` (``make fleet-demo``).
 See docs/fleet.md.
 """

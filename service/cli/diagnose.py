@@ -1,0 +1,105 @@
+"""``railtwin diagnose``: a measured passage in, the twin's verdict on its wheel out.
+
+    railtwin diagnose --site SITE.toml --passage PASSAGE.json --measured MEASURED.csv
+                      [--out DIAGNOSIS.json] [--format table|json]
+
+The passage is a ``WheelPassage`` JSON file (speed, load, mass, radius; its outline is
+ignored: finding the flat is the point); the measurement a CSV (``t_s,force_N``) or a
+railtwin MCAP log holding the passage's ``MeasuredPassage``. Prints a short table (or
+the Diagnosis JSON with ``--format json``) and writes the Diagnosis JSON to ``--out``.
+Exit status: 0 done (whatever the verdict), 1 the fit failed, 2 invalid input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from service.cli.main import EXIT_CODES_HELP, EXIT_FAILURE, EXIT_OK, EXIT_USAGE, CommandError
+
+
+def register(subparsers: Any) -> None:
+    p = subparsers.add_parser(
+        "diagnose",
+        help="diagnose a wheel flat from a measured passage",
+        description=__doc__.split("\n\n")[0] + "\n\n" + __doc__.split("\n\n")[2],
+        epilog=EXIT_CODES_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("--site", required=True, type=Path, help="site file (TOML)")
+    p.add_argument("--passage", required=True, type=Path, help="WheelPassage JSON file")
+    p.add_argument("--measured", required=True, type=Path,
+                   help="measured force: CSV (t_s,force_N) or railtwin .mcap")
+    p.add_argument("--out", type=Path, default=None, help="write the Diagnosis JSON here")
+    p.add_argument("--format", choices=("table", "json"), default="table",
+                   help="stdout: a table for people (default) or the JSON")
+    p.set_defaults(func=cmd_diagnose)
+
+
+def table(d: Any) -> str:
+    kn = 1e-3
+    rows = [("verdict", d.verdict)]
+    if d.flat is None:
+        rows.append(("flat", "none found"))
+    else:
+        f = d.flat
+        rows += [
+            ("flat", f"{f.kind}, {f.length * 1e3:.1f} mm "
+                     f"[{f.length_low * 1e3:.1f}, {f.length_high * 1e3:.1f}] mm"),
+            ("depth", f"{f.depth * 1e3:.3f} mm"),
+            ("phase", f"{f.phase:.3f} rad"),
+        ]
+    rows += [
+        ("peak force measured", f"{d.peak_force_measured * kn:.1f} kN"),
+        ("peak force of the fit", f"{d.peak_force_fit * kn:.1f} kN"),
+        ("fit rms", f"{d.fit_rms * kn:.1f} kN"),
+        ("peak at line speed", "—" if d.peak_force_at_line_speed is None
+         else f"{d.peak_force_at_line_speed * kn:.1f} kN"),
+        ("wall time", f"{d.wall_time:.2f} s"),
+    ]
+    w = max(len(k) for k, _ in rows)
+    lines = [f"{k:<{w}}  {v}" for k, v in rows]
+    lines += [f"{'reason':<{w}}  {r}" for r in d.reasons]
+    return "\n".join(lines) + "\n"
+
+
+def cmd_diagnose(args: argparse.Namespace) -> int:
+    from pydantic import ValidationError
+
+    from schemas.messages import WheelPassage
+    from service.cli.main import _read_json, _write_atomic
+    from service.clients.measured_io import MeasuredFileError, read_measured
+    from service.physics.diagnosis import Diagnoser, MeasurementError
+    from service.wire.site import SiteFileError, load_site
+
+    try:
+        site = load_site(args.site)
+    except (SiteFileError, OSError) as exc:
+        raise CommandError(f"invalid site {args.site}: {exc}", EXIT_USAGE) from None
+    raw = _read_json(str(args.passage), str(args.passage))
+    try:
+        passage = WheelPassage.model_validate(raw)
+    except ValidationError as exc:
+        e = exc.errors()[0]
+        where = ".".join(map(str, e["loc"])) or "(whole)"
+        raise CommandError(f"invalid passage {args.passage}: {where}: {e['msg']}",
+                           EXIT_USAGE) from None
+    try:
+        measured = read_measured(args.measured, passage.passage_id)
+    except MeasuredFileError as exc:
+        raise CommandError(str(exc), EXIT_USAGE) from None
+    print(f"railtwin diagnose: fitting {measured.samples} samples of {passage.passage_id} ...",
+          file=sys.stderr, flush=True)
+    try:
+        diagnosis, _ = Diagnoser(site).diagnose(passage, measured)
+    except MeasurementError as exc:
+        raise CommandError(f"invalid measurement {args.measured}: {exc}", EXIT_USAGE) from None
+    except (ValueError, ArithmeticError) as exc:
+        raise CommandError(f"the fit failed: {exc}", EXIT_FAILURE) from None
+    text = diagnosis.model_dump_json(indent=2)
+    if args.out is not None:
+        _write_atomic(args.out, text + "\n")
+    sys.stdout.write(text + "\n" if args.format == "json" else table(diagnosis))
+    return EXIT_OK

@@ -1,0 +1,136 @@
+"""Publish measured forces for some wheels of a train and print the twin's diagnoses.
+
+    python -m service.clients.measured_feeder --train recordings/samples/train_160kmh.json \\
+        --site-file examples/site.toml --connect tcp/127.0.0.1:7447 [--axles 0 5 13 20]
+        [--save M.json | --load M.json] [--with-train]
+
+The measurements are made by the generator (``service.clients.synthesize``: each wheel's own
+outline, unknown roughness, foundation damping, sensor chain and noise); the wheels'
+passages must already have been sent (``service.clients.feeder``), or come later: the twin pairs
+them by passage id. One line per diagnosis, with the time from publishing the
+measurement to receiving its verdict. ``--save`` only generates (no Zenoh), ``--load``
+publishes saved ones; ``--with-train`` publishes each measurement when its wheel leaves
+the site, timed from the start like ``service.clients.feeder`` times the train (run both
+together: the diagnoses are then made while the train streams, as at a real site).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import threading
+import time
+from pathlib import Path
+
+import zenoh
+
+from schemas.diagnosis import Diagnosis, MeasuredPassage
+from schemas.messages import ServiceError
+from service.clients.feeder import load_train, wait_matching
+from service.clients.synthesize import measure, passage_tread
+from service.physics.diagnosis import Diagnoser
+from service.twin.twin import json_encoding
+from service.wire.keyspace import SiteKeys
+from service.wire.site import load_site
+from service.wire.zenoh_session import DEFAULT_ENDPOINT, build_config, open_session
+
+DEFAULT_AXLES = (0, 5, 13, 20)
+
+
+def describe(d: Diagnosis, latency: float) -> str:
+    flat = "no flat" if d.flat is None else (
+        f"{d.flat.kind} {d.flat.length * 1e3:.1f} mm "
+        f"[{d.flat.length_low * 1e3:.1f}-{d.flat.length_high * 1e3:.1f}]")
+    line = "" if d.peak_force_at_line_speed is None else (
+        f", {d.peak_force_at_line_speed / 1e3:.0f} kN at line speed")
+    return (f"diagnosis {d.passage_id}: {d.verdict.upper():7s} {flat}; measured peak "
+            f"{d.peak_force_measured / 1e3:.0f} kN{line}; verdict {latency * 1e3:.0f} ms "
+            f"after the measurement")
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="python -m service.clients.measured_feeder",
+                                description=__doc__.split("\n")[0])
+    p.add_argument("--train", type=Path, default=Path("recordings/samples/train_160kmh.json"))
+    p.add_argument("--site-file", type=Path, default=Path("examples/site.toml"))
+    p.add_argument("--connect", action="append", default=[], metavar="ENDPOINT")
+    p.add_argument("--axles", type=int, nargs="+", default=list(DEFAULT_AXLES))
+    p.add_argument("--timeout", type=float, default=60.0)
+    p.add_argument("--save", type=Path, default=None, help="only generate, into this file")
+    p.add_argument("--load", type=Path, default=None, help="publish measurements saved before")
+    p.add_argument("--with-train", action="store_true",
+                   help="publish each when its wheel leaves the site (train timing)")
+    a = p.parse_args(argv)
+    site = load_site(a.site_file)
+    train = load_train(a.train)
+    keys = SiteKeys(site.site_id)
+    offsets = {w.passage.passage_id: w.offset + site.length / w.passage.speed
+               for w in train.wheels}
+    payloads: list[MeasuredPassage] = []
+    if a.load is not None:
+        payloads = [MeasuredPassage.model_validate(d)
+                    for d in json.loads(a.load.read_text(encoding="utf-8"))]
+    else:
+        diagnoser = Diagnoser(site)
+        wheels = [w.passage for w in train.wheels if w.passage.axle_index in set(a.axles)]
+        print(f"measured: generating the site's measurement of {len(wheels)} wheels "
+              f"(axles {', '.join(str(w.axle_index) for w in wheels)})", flush=True)
+        for i, w in enumerate(wheels):
+            m = measure(site, w, passage_tread(w), seed=1000 + i, diagnoser=diagnoser)
+            payloads.append(MeasuredPassage(passage_id=w.passage_id, sample_rate=m.sample_rate,
+                                            t_start=m.t_start, force=m.force.tolist(),
+                                            speed=w.speed))
+    if a.save is not None:
+        a.save.write_text(json.dumps([m.model_dump() for m in payloads]), encoding="utf-8")
+        return 0
+    sent: dict[str, float] = {}
+    got: dict[str, Diagnosis] = {}
+    done = threading.Event()
+    lock = threading.Lock()
+
+    def on_output(sample: zenoh.Sample) -> None:
+        kind = keys.kind_of(str(sample.key_expr))
+        data = sample.payload.to_bytes()
+        with lock:
+            if kind == "diagnosis":
+                d = Diagnosis.model_validate_json(data)
+                if d.passage_id in sent and d.passage_id not in got:
+                    got[d.passage_id] = d
+                    print(describe(d, time.monotonic() - sent[d.passage_id]), flush=True)
+            elif kind == "error":
+                e = ServiceError.model_validate_json(data)
+                if e.passage_id in sent and e.passage_id not in got:
+                    print(f"diagnosis {e.passage_id}: ERROR {e.kind}: {e.message}", flush=True)
+                    got[e.passage_id] = None  # type: ignore[assignment]
+            if len(got) == len(payloads):
+                done.set()
+
+    connect = a.connect or [DEFAULT_ENDPOINT]
+    with open_session(build_config(connect=connect)) as session:
+        sub = session.declare_subscriber(keys.all_outputs, on_output)
+        pub = session.declare_publisher(keys.measured, encoding=json_encoding(MeasuredPassage),
+                                        congestion_control=zenoh.CongestionControl.BLOCK)
+        wait_matching(pub, 10.0)
+        start = time.monotonic()
+        for mp in sorted(payloads, key=lambda m: offsets.get(m.passage_id, 0.0)):
+            if a.with_train:
+                delay = start + offsets.get(mp.passage_id, 0.0) - time.monotonic()
+                if delay > 0:
+                    time.sleep(delay)
+            with lock:
+                sent[mp.passage_id] = time.monotonic()
+            pub.put(mp.model_dump_json().encode())
+            if not a.with_train:
+                time.sleep(0.05)  # a train brings a wheel every ~50 ms
+        ok = done.wait(a.timeout)
+        sub.undeclare()
+    if not ok:
+        print(f"measured: {len(payloads) - len(got)} diagnoses missing after {a.timeout} s",
+              file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,168 @@
+"""The twin's diagnosis of one measured passage: messages in, ``Diagnosis`` out.
+
+Composes ``sim_core.diagnosis`` with the site file: the site's rail (as the round
+wheel's constraint, kept per radius), contact law, foundation and measuring chain
+(``[diagnosis]``), and the limits that make the verdict. Bad measurements are refused
+with ``MeasurementError`` naming the field; the service turns it into a ServiceError,
+the CLI into exit status 2.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from schemas.diagnosis import Diagnosis, FlatFinding, MeasuredPassage
+from schemas.messages import WheelPassage
+from schemas.site import SiteConfig
+from service.physics.measurement_error import MeasurementError
+from service.physics.site_physics import SitePhysics
+from sim_core.diagnosis.estimate import FlatEstimate, estimate_flat
+from sim_core.diagnosis.forward import (
+    Flat,
+    RailTables,
+    WheelOnSite,
+    flat_times,
+    simulate_passage_run_in,
+    with_damping_ratio,
+)
+from sim_core.diagnosis.sensor import SensorModel
+from sim_core.diagnosis.verdict import Limits, verdict
+
+MIN_RECORD_FRACTION = 0.5
+"""A record must cover at least this fraction of the wheel's time on the site."""
+
+SPEED_MISMATCH = 0.05
+"""A measured speed further than this (relative) from the passage's is refused."""
+
+
+@dataclass(frozen=True)
+class FitCurves:
+    """What the Rerun recording draws: measured and best-fit force at the measured times,
+    the fitted windows and the impacts (flat under the wheel) along the site."""
+
+    t: NDArray[np.float64]
+    x: NDArray[np.float64]
+    measured: NDArray[np.float64]
+    fitted: NDArray[np.float64]
+    impacts_t: NDArray[np.float64]
+    estimate: FlatEstimate
+
+
+class Diagnoser:
+    """Diagnoses measured passages at one site (one instance per site, reused)."""
+
+    def __init__(self, site: SiteConfig, physics: SitePhysics | None = None) -> None:
+        self.site = site
+        self.physics = physics if physics is not None else SitePhysics(site)
+        cfg = site.diagnosis
+        self.sensor = SensorModel(cfg.sensor_lowpass_hz, cfg.sensor_lowpass_order)
+        self.rails = RailTables(self.physics.base_rail)
+        self.limits = Limits(cfg.watch_force, cfg.inspect_force, cfg.remove_force,
+                             cfg.watch_length, cfg.inspect_length, cfg.remove_length)
+
+    def warm_up(self) -> float:
+        """Diagnose one synthetic flat wheel (compiles the fit's kernels); returns seconds."""
+        from sim_core.diagnosis.synthetic import Perturbations, synthetic_measurement
+
+        start = time.perf_counter()
+        probe = WheelPassage(passage_id="warm-up", train_id="warm-up", axle_index=0,
+                             side="right", timestamp=0.0, speed=30.0, load=60e3, mass=600.0,
+                             radius=0.46)
+        wheel = self.wheel(probe)
+        rate = self.site.diagnosis.sample_rate or 10_000.0
+        m = synthetic_measurement(wheel, probe.speed, Flat.ideal(0.46, 0.04, 1.0),
+                                  self.physics.base_rail, self.site.length, rate, self.sensor,
+                                  Perturbations(roughness_rms=0.0, seed=0))
+        estimate_flat(wheel, probe.speed, m.t, m.force, self.sensor)
+        return time.perf_counter() - start
+
+    def wheel(self, passage: WheelPassage) -> WheelOnSite:
+        return WheelOnSite(passage.mass, passage.load, passage.radius,
+                           self.physics.contact_model(passage), self.physics.foundation,
+                           self.site.rtol)
+
+    def check(self, passage: WheelPassage, measured: MeasuredPassage) -> float:
+        """Refuse what cannot be diagnosed; returns the speed to use (m/s)."""
+        cfg = self.site.diagnosis
+        if measured.passage_id != passage.passage_id:
+            raise MeasurementError("passage_id", f"{measured.passage_id!r} does not match the "
+                                   f"passage {passage.passage_id!r}")
+        if cfg.sample_rate is not None and not math.isclose(measured.sample_rate, cfg.sample_rate,
+                                                             rel_tol=1e-6):
+            raise MeasurementError("sample_rate", f"{measured.sample_rate:g} Hz does not match the "
+                                   f"site's measuring rate {cfg.sample_rate:g} Hz")
+        if cfg.sensor_lowpass_hz is not None and cfg.sensor_lowpass_hz >= 0.5 * measured.sample_rate:
+            raise MeasurementError("sample_rate", f"{measured.sample_rate:g} Hz is too low for the "
+                                   f"site's {cfg.sensor_lowpass_hz:g} Hz measuring chain")
+        speed = passage.speed
+        if measured.speed is not None:
+            if abs(measured.speed / passage.speed - 1.0) > SPEED_MISMATCH:
+                raise MeasurementError("speed", f"measured {measured.speed:g} m/s is more than "
+                                       f"{SPEED_MISMATCH:.0%} from the passage's {passage.speed:g} m/s")
+            speed = measured.speed
+        on_site = self.site.length / speed
+        if measured.duration < MIN_RECORD_FRACTION * on_site:
+            raise MeasurementError("force", f"the record lasts {measured.duration * 1e3:.1f} ms, "
+                                   f"less than {MIN_RECORD_FRACTION:.0%} of the "
+                                   f"{on_site * 1e3:.1f} ms the wheel spends on the site")
+        overlap = min(measured.t_start + measured.duration, on_site) - max(measured.t_start, 0.0)
+        if overlap < MIN_RECORD_FRACTION * on_site:
+            raise MeasurementError(
+                "t_start", f"the record [{measured.t_start:g}, "
+                f"{measured.t_start + measured.duration:g}] s covers less than "
+                f"{MIN_RECORD_FRACTION:.0%} of the wheel's time on the site [0, {on_site:g}] s")
+        f = np.asarray(measured.force)
+        if float(np.ptp(f)) == 0.0:
+            raise MeasurementError("force", "the record is constant: no sensor signal")
+        return speed
+
+    def diagnose(self, passage: WheelPassage, measured: MeasuredPassage) -> tuple[Diagnosis, FitCurves]:
+        start = time.perf_counter()
+        speed = self.check(passage, measured)
+        wheel = self.wheel(passage)
+        t = measured.t_start + np.arange(measured.samples) / measured.sample_rate
+        f = np.asarray(measured.force, dtype=np.float64)
+        est = estimate_flat(wheel, speed, t, f, self.sensor)
+        fit_wheel = with_damping_ratio(wheel, est.damping_ratio)
+        fitted = self._measure(fit_wheel, est.speed, est.flat, float(t[0]), float(t[-1]), t)
+        cfg = self.site.diagnosis
+        at_line: float | None = None
+        if cfg.line_speed is not None:
+            dur = self.site.length / cfg.line_speed
+            rate = self.sensor.fine_rate(measured.sample_rate)
+            tl = np.arange(0.0, dur, 1.0 / measured.sample_rate)
+            at_line = float(np.max(self._measure(fit_wheel, cfg.line_speed, est.flat, 0.0, dur, tl,
+                                                 rate)))
+        flat = est.flat
+        finding = None
+        if flat is not None:
+            finding = FlatFinding(kind=flat.kind, length=flat.length, depth=flat.depth,
+                                  phase=flat.phase, length_low=est.length_low,
+                                  length_high=est.length_high)
+        peak_measured = float(np.max(f))
+        level, reasons = verdict(self.limits, peak_measured, at_line,
+                                 flat.length if flat is not None else None, cfg.line_speed)
+        impacts = (flat_times(passage.radius, est.speed, flat.phase, float(t[0]), float(t[-1]))
+                   if flat is not None else np.empty(0))
+        diag = Diagnosis(
+            site_id=self.site.site_id, passage_id=passage.passage_id, flat=finding,
+            verdict=level,  # type: ignore[arg-type]
+            reasons=reasons, peak_force_measured=peak_measured,
+            peak_force_fit=float(np.max(fitted)), fit_rms=est.fit_rms,
+            peak_force_at_line_speed=at_line, wall_time=time.perf_counter() - start,
+        )
+        return diag, FitCurves(t, t * est.speed, f, fitted, impacts, est)
+
+    def _measure(self, wheel: WheelOnSite, speed: float, flat: Flat | None, t0: float, t1: float,
+                 t_out: NDArray[np.float64], rate: float | None = None) -> NDArray[np.float64]:
+        """The wheel (with its run-in) over [t0, t1] as the site's sensor records it at ``t_out``."""
+        if rate is None:
+            rate = self.sensor.fine_rate(1.0 / float(np.median(np.diff(t_out))))
+        out = simulate_passage_run_in(wheel, speed, flat, self.rails, speed * t0,
+                                      speed * (t1 + 2.0 / rate), rate)
+        return self.sensor.measure(out.t, out.force, t_out)
