@@ -6,7 +6,7 @@ Starts, each in its own process, a Zenoh router on a free loopback port, three s
 twins (``railtwin serve`` with ``examples/site.toml`` renamed km12, km48 and km97,
 connected to the router) and the fleet service (``railtwin fleet serve --connect ...
 --db OUT/fleet.sqlite --http ...``). Then one vehicle passes the three sites on three
-successive days: wheelset 2's left wheel has a flat growing 36 → 44 → 52 mm (its axle
+successive days: wheelset 2's left wheel has a flat growing 30 → 36 → 42 mm (its axle
 mate is round); the site's measured force of each wheel is made by the generator
 (``service.clients.synthesize``: unknown roughness and damping, sensor chain, noise). It prints
 each diagnosis and each fleet alarm as they come, the wheel's history as
@@ -35,7 +35,7 @@ ROOT = Path(__file__).resolve().parents[2]
 SITES = ("km12", "km48", "km97")
 SPEEDS = (22.0, 25.0, 20.0)
 """m/s: each site measures the train at its own speed (line speed 44.4 m/s)."""
-FLAT_MM = (36.0, 44.0, 52.0)
+FLAT_MM = (30.0, 36.0, 42.0)
 VEHICLE = "31-80-4751-123-4"
 WHEELSET = 2
 DAY = 86400.0
