@@ -240,9 +240,11 @@ def wheel_table(doc: dict[str, Any]) -> str:
     """The wheel document as a table for people."""
     hist = doc["history"]
     sites = sorted({h["site_id"] for h in hist})
+    sw = max([4, *(len(h["site_id"]) for h in hist)])
+    pw = max([7, *(len(h["passage_id"]) for h in hist)])
     lines = [f"wheel {doc['wheel_id']}: last verdict {doc['last_verdict']}, {len(hist)} "
              f"diagnoses at {len(sites)} site(s) ({', '.join(sites)})", "",
-             f"{'date (UTC)':<17} {'site':<10} {'passage':<22} {'verdict':<8} "
+             f"{'date (UTC)':<17} {'site':<{sw}} {'passage':<{pw}} {'verdict':<8} "
              f"{'flat mm [95 %]':<20} {'F@line kN':>9} {'speed m/s':>9}"]
     for h in hist:
         f = h["flat"]
@@ -250,7 +252,7 @@ def wheel_table(doc: dict[str, Any]) -> str:
                                       f"{f['length_high'] * 1e3:.1f}]")
         fl = h["peak_force_at_line_speed"]
         sp = h["speed"]
-        lines.append(f"{_date(h['timestamp']):<17} {h['site_id']:<10} {h['passage_id']:<22} "
+        lines.append(f"{_date(h['timestamp']):<17} {h['site_id']:<{sw}} {h['passage_id']:<{pw}} "
                      f"{h['verdict']:<8} {flat:<20} {'-' if fl is None else f'{fl / 1e3:.0f}':>9} "
                      f"{'-' if sp is None else f'{sp:.1f}':>9}")
     tr = doc["trend"]
