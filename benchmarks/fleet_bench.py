@@ -64,6 +64,12 @@ def _flat(k: int, n: int) -> float | None:
     return 20.0 + 0.2 * n if k % 50 == 0 else None
 
 
+def wait_listening(endpoint: str) -> None:
+    from service.cli.fleet_demo import wait_listening as wait
+
+    wait(endpoint)
+
+
 def _rss(pid: int) -> dict[str, float]:
     out = {}
     for line in Path(f"/proc/{pid}/status").read_text().splitlines():
@@ -101,6 +107,12 @@ def _proc(args: list[str], log: Path, ready: str | None = None,
 
 
 @contextmanager
+def _wait_router(endpoint: str) -> Iterator[None]:
+    wait_listening(endpoint)
+    yield
+
+
+@contextmanager
 def _postgres(tmp: Path) -> Iterator[Callable[[], str]]:
     import pgserver
     import psycopg
@@ -124,6 +136,7 @@ def _postgres(tmp: Path) -> Iterator[Callable[[], str]]:
 def bench_ingest(db: str, sites: int, diagnoses: int, tmp: Path, label: str) -> dict[str, Any]:
     import zenoh
 
+    from service.cli.fleet_demo import router_command
     from service.fleet.store import open_store
     from service.wire.zenoh_session import build_config, free_tcp_endpoint
 
@@ -138,8 +151,8 @@ def bench_ingest(db: str, sites: int, diagnoses: int, tmp: Path, label: str) -> 
             payloads.append((i, f"railtwin/{site}/diagnosis/{pid}",
                              _diagnosis(site, pid, _wheel(k), T0 + j * 600.0 + i, _flat(k, j))))
     n = len(payloads)
-    with _proc(["-m", "service.cli.fleet_demo", "--router", router], tmp / f"router-{label}.log",
-               ready="router: listening"), \
+    with _proc(router_command(router), tmp / f"router-{label}.log"), \
+            _wait_router(router), \
             _proc(["-m", "service.cli.fleet", "serve", "--mode", "client", "--connect", router,
                    "--db", db, "--no-catch-up"], tmp / f"fleet-{label}.log",
                   ready="fleet: ready") as fleet:

@@ -56,6 +56,30 @@ def run_router(endpoint: str) -> int:
     return 0
 
 
+def router_command(endpoint: str) -> list[str]:
+    """``railtwin router --listen ENDPOINT`` (issue 16) when this build has it, else this
+    module's own router (the same: a Zenoh session in router mode)."""
+    import importlib.util
+
+    if importlib.util.find_spec("service.cli.router") is not None:
+        return ["-m", "service.cli.router", "--listen", endpoint]
+    return ["-m", "service.cli.fleet_demo", "--router", endpoint]
+
+
+def wait_listening(endpoint: str, timeout: float = 30.0) -> None:
+    """Until something accepts TCP connections at ``tcp/HOST:PORT``."""
+    host, port = endpoint.split("/", 1)[1].rsplit(":", 1)
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            with socket.create_connection((host, int(port)), timeout=1.0):
+                return
+        except OSError:
+            if time.monotonic() > deadline:
+                raise RuntimeError(f"nothing listens on {endpoint} after {timeout:g} s") from None
+            time.sleep(0.1)
+
+
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -153,8 +177,7 @@ def run_demo(out: Path, template: Path, linger: float) -> int:
     procs = Procs(out)
     files = _site_files(out, template)
     print(f"fleet-demo: router on {router}; sites {', '.join(SITES)}; logs in {out}", flush=True)
-    procs.start("router", ["-m", "service.cli.fleet_demo", "--router", router])
-    time.sleep(1.0)
+    procs.start("router", router_command(router))
     for site, f in zip(SITES, files, strict=True):
         procs.start(site, ["-m", "service.cli.serve", "--site", str(f), "--connect", router,
                            "--recordings", str(out / site), "--state", str(out / site / "state"),
@@ -180,6 +203,7 @@ def run_demo(out: Path, template: Path, linger: float) -> int:
         print(f"  {d.site_id}: {who}: {d.verdict.upper()} ({flat}{fl})", flush=True)
 
     try:
+        wait_listening(router)
         with zenoh.open(build_config(connect=[router], mode="client")) as session:
             session.declare_subscriber("railtwin/fleet/alarm/**", on_alarm)
             session.declare_subscriber("railtwin/*/diagnosis/**", on_diagnosis)
