@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 from collections.abc import Iterator
-from pathlib import Path
 from typing import Any
 
 import pytest
@@ -15,17 +14,26 @@ from service.cli import fleet as fleet_cli
 from service.fleet.service import FleetService
 from service.fleet.store import open_store
 from service.wire.zenoh_session import build_config, free_tcp_endpoint
-from tests.fleet_support import FakeTwin, diagnosis_json, wait_for
+from tests.fleet_support import (
+    FakeTwin,
+    db_url,
+    diagnosis_json,
+    pg_admin_uri,
+    wait_for,
+)
+
+__all__ = ["db_url", "pg_admin_uri"]  # fixtures used here
 
 
 @pytest.fixture
-def net(tmp_path: Path) -> Iterator[dict[str, Any]]:
-    """Two fake twins on one listening session, a fleet service and a client connected."""
+def net(db_url: str) -> Iterator[dict[str, Any]]:
+    """Two fake twins on one listening session, a fleet service (on SQLite, then on
+    PostgreSQL) and a client connected."""
     endpoint = free_tcp_endpoint()
     twin_s = zenoh.open(build_config(listen=[endpoint]))
     fleet_s = zenoh.open(build_config(connect=[endpoint]))
     client_s = zenoh.open(build_config(connect=[endpoint]))
-    store = open_store(str(tmp_path / "fleet.sqlite"))
+    store = open_store(db_url)
     a, b = FakeTwin(twin_s, "km12"), FakeTwin(twin_s, "km48")
     # one diagnosis made before the fleet starts: it must come by catch-up
     a.diagnose("early", diagnosis_json("km12", "early", "V7/1/right", day=-1, verdict="ok",
