@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 from pydantic import ValidationError
@@ -73,9 +73,7 @@ class Entry:
         }
 
     def with_speed(self, speed: float | None) -> Entry:
-        if speed is None:
-            return self
-        return Entry(**{**self.__dict__, "speed": speed})
+        return self if speed is None else replace(self, speed=speed)
 
 
 def entry_from_payload(payload: bytes | str, received_at: float) -> Entry:

@@ -30,7 +30,7 @@ ALIVE_SUB = f"{ROOT}/*/alive"
 """Twins' liveliness tokens: a token appearing triggers a catch-up from that site."""
 
 _CHUNK = re.compile(r"^[A-Za-z0-9_.\-]{1,96}$")
-_WHEEL_ID = re.compile(r"^([A-Za-z0-9_.\-]{1,96})/([1-9][0-9]{0,5})/(left|right)$")
+_WHEEL_ID = re.compile(r"^([A-Za-z0-9_.\-]{1,96})/([1-9][0-9]{0,8})/(left|right)$")
 
 
 class WheelIdError(ValueError):

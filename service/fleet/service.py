@@ -300,12 +300,14 @@ class FleetService:
                         query.reply(keys.wheel_key(wheel_id), json.dumps(doc), encoding=JSON)
                     return
                 asked = zenoh.KeyExpr(key)
+                replied = 0
                 for w in self.store.wheels(limit=100_000):
                     wkey = keys.wheel_key(w.wheel_id)
-                    if asked.intersects(zenoh.KeyExpr(wkey)):
+                    if replied < MAX_WHEEL_REPLIES and asked.intersects(zenoh.KeyExpr(wkey)):
                         doc = self.wheel_document(w.wheel_id)
                         if doc is not None:
                             query.reply(wkey, json.dumps(doc), encoding=JSON)
+                            replied += 1
             except Exception as exc:
                 log.exception("wheel query failed")
                 query.reply_err(json.dumps({"error": "internal", "message": str(exc)}))
