@@ -14,15 +14,7 @@ from service.cli import fleet as fleet_cli
 from service.fleet.service import FleetService
 from service.fleet.store import open_store
 from service.wire.zenoh_session import build_config, free_tcp_endpoint
-from tests.fleet_support import (
-    FakeTwin,
-    db_url,
-    diagnosis_json,
-    pg_admin_uri,
-    wait_for,
-)
-
-__all__ = ["db_url", "pg_admin_uri"]  # fixtures used here
+from tests.fleet_support import FakeTwin, diagnosis_json, wait_for
 
 
 @pytest.fixture

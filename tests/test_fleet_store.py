@@ -12,9 +12,7 @@ from service.fleet.alarms import apply
 from service.fleet.limits import FleetLimits
 from service.fleet.migrations import LATEST
 from service.fleet.store import AlarmRow, Store, open_store
-from tests.fleet_support import DAY, T0, db_url, make_entry, pg_admin_uri, store
-
-__all__ = ["db_url", "pg_admin_uri", "store"]  # fixtures used here
+from tests.fleet_support import DAY, T0, make_entry
 
 
 def test_a_diagnosis_is_stored_once(store: Store) -> None:
