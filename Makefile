@@ -7,6 +7,8 @@
 #   make soak     20 000-passage burst (memory must plateau), kill -9 mid-stream, recover (minutes)
 #   make validate the wheel-flat diagnosis on 90 synthetic + 15 measured-tread passages (~2 min)
 #   make lint     ruff and mypy only
+#   make fleet-demo  router, three site twins, the fleet service, a growing flat's alarms (minutes)
+#   make fleet-bench the fleet at scale: 100 sites through a router, 10^6 rows, SQLite and PostgreSQL
 #
 # The venv is (re)installed only when pyproject.toml changes (stamp file).
 
@@ -22,10 +24,10 @@ export NUMBA_CACHE_DIR ?= $(CURDIR)/$(VENV)/numba-cache
 export RERUN_ANALYTICS ?= 0
 export PIP_DISABLE_PIP_VERSION_CHECK := 1
 
-.PHONY: help venv test lint ruff mypy pytest demo bench figures validate soak clean
+.PHONY: help venv test lint ruff mypy pytest demo bench figures validate soak clean fleet-demo fleet-bench
 
 help:
-	@sed -n '2,12p' Makefile | sed 's/^# \{0,1\}//'
+	@sed -n '2,14p' Makefile | sed 's/^# \{0,1\}//'
 
 $(BIN)/python:
 	$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "railtwin needs Python >= 3.11, got " + sys.version.split()[0]'
@@ -63,6 +65,12 @@ demo: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python -m benchmarks.run_all
+
+fleet-demo: $(STAMP)
+	$(BIN)/python -m service.cli.fleet_demo
+
+fleet-bench: $(STAMP)
+	$(BIN)/python -m benchmarks.fleet_bench
 
 soak: $(STAMP)
 	$(BIN)/python -m benchmarks.soak
