@@ -37,7 +37,8 @@ def main(argv: list[str] | None = None) -> int:
     site = load_site(args.site)
     endpoint = free_tcp_endpoint()
     print(f"demo: starting railtwin serve for site {site.site_id!r} on {endpoint} "
-          "(the first start compiles the physics: allow a few minutes; up to 15 are waited for)", flush=True)
+          "(the physics loads from numba's cache, which make venv filled; without it the first "
+          "start compiles it: minutes, up to 15 are waited for)", flush=True)
     with tempfile.TemporaryDirectory(prefix="railtwin-demo-state-") as state, ServiceProcess(
         args.site, listen=endpoint, recordings=args.recordings, start_timeout=900.0,
         extra_args=("--state", state),

@@ -46,6 +46,7 @@ exit status:
 
 OPTIONAL_COMMAND_MODULES: tuple[str, ...] = (
     "service.cli.serve", "service.cli.replay", "service.cli.diagnose", "service.cli.recover",
+    "service.cli.warm",
 )
 """Modules that add subcommands when present (each defines ``register(subparsers)``)."""
 
