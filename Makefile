@@ -38,13 +38,13 @@ $(BIN)/python:
 # pip upgrade, which cost a round trip to the index and a reinstall on every fresh venv.)
 $(STAMP): pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e '.[test]'
-	$(BIN)/railtwin warm
+	$(BIN)/python -m service.cli.warm
 	touch $(STAMP)
 
 venv: $(STAMP)
 
 warm: $(STAMP)
-	$(BIN)/railtwin warm
+	$(BIN)/python -m service.cli.warm
 
 ruff: $(STAMP)
 	$(BIN)/ruff check .

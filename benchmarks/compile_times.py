@@ -10,14 +10,15 @@ directory (a new temporary one unless ``--cache-dir`` is given):
 1. cold: nothing cached; every compiled function numba compiles is timed through
    numba's event API (``numba:compile``, one event per dispatcher and signature,
    nested when typing a caller compiles its callees). *Inclusive* is the whole event,
-   *self* the event less the compiles nested in it (a function's own typing, lowering
+   *self* the event less the compiles nested in it: a function's own typing, lowering
    and LLVM optimisation, into which its ``inline="always"`` callees and the linked
-   callees' IR are folded);
+   callees' IR are folded (wall and CPU seconds);
 2. warm: the same warm-up loading from the cache; any compile event there is a
    function whose cache is missed (listed: it is compiled again in every process).
 
-The table is printed largest self time first. Wall times on a shared machine: compare
-runs made under the same load (the load average is printed).
+The table is printed largest self time first. On a shared machine compare the CPU
+column; wall times only between runs made under the same load (the load average is
+printed).
 """
 
 from __future__ import annotations
@@ -45,6 +46,7 @@ class Compiled:
     signature: str
     inclusive: float
     self_time: float
+    self_cpu: float
     depth: int
 
 
@@ -54,22 +56,24 @@ def _child(site_file: Path) -> dict[str, Any]:
     from numba.core import event as ev
 
     compiled: list[Compiled] = []
-    stack: list[list[float]] = []  # [start, time spent in nested compiles]
+    stack: list[list[float]] = []  # [start, nested wall, start CPU, nested CPU]
 
     class Recorder(ev.Listener):
         def on_start(self, event: Any) -> None:
-            stack.append([time.perf_counter(), 0.0])
+            stack.append([time.perf_counter(), 0.0, time.process_time(), 0.0])
 
         def on_end(self, event: Any) -> None:
-            start, nested = stack.pop()
+            start, nested, start_cpu, nested_cpu = stack.pop()
             dur = time.perf_counter() - start
+            cpu = time.process_time() - start_cpu
             if stack:
                 stack[-1][1] += dur
+                stack[-1][3] += cpu
             disp = event.data["dispatcher"]
             fn = disp.py_func
             args = ", ".join(str(a) for a in event.data["args"])
             compiled.append(Compiled(f"{fn.__module__}.{fn.__qualname__}", f"({args})", dur,
-                                     dur - nested, len(stack)))
+                                     dur - nested, cpu - nested_cpu, len(stack)))
 
     ev.register("numba:compile", Recorder())
     phases: dict[str, float] = {}
@@ -110,23 +114,29 @@ def _table(compiled: list[dict[str, Any]], top: int) -> str:
     """Per function (all its signatures together): compiles, self and inclusive seconds."""
     per: dict[str, dict[str, Any]] = {}
     for c in compiled:
-        row = per.setdefault(c["function"], {"n": 0, "self": 0.0, "incl": 0.0, "sigs": set()})
+        row = per.setdefault(c["function"], {"n": 0, "self": 0.0, "cpu": 0.0, "incl": 0.0,
+                                             "sigs": set()})
         row["n"] += 1
         row["self"] += c["self_time"]
+        row["cpu"] += c.get("self_cpu", float("nan"))
         row["incl"] = max(row["incl"], c["inclusive"])
         row["sigs"].add(c["signature"])
     rows = sorted(per.items(), key=lambda kv: -kv[1]["self"])
-    lines = ["| function | signatures | self s | inclusive s (largest) |",
-             "|---|---:|---:|---:|"]
+    lines = ["| function | signatures | self s | self CPU s | inclusive s (largest) |",
+             "|---|---:|---:|---:|---:|"]
     for name, r in rows[:top]:
         short = name.removeprefix("sim_core.")
-        lines.append(f"| {short} | {len(r['sigs'])} | {r['self']:.2f} | {r['incl']:.2f} |")
+        lines.append(f"| {short} | {len(r['sigs'])} | {r['self']:.2f} | {r['cpu']:.2f} | "
+                     f"{r['incl']:.2f} |")
     rest = rows[top:]
     if rest:
         lines.append(f"| ({len(rest)} more) | {sum(len(r['sigs']) for _, r in rest)} | "
-                     f"{sum(r['self'] for _, r in rest):.2f} | |")
+                     f"{sum(r['self'] for _, r in rest):.2f} | "
+                     f"{sum(r['cpu'] for _, r in rest):.2f} | |")
     total_self = sum(c["self_time"] for c in compiled)
-    lines.append(f"| **all {len(per)} functions** | {len(compiled)} | {total_self:.2f} | |")
+    total_cpu = sum(c.get("self_cpu", float("nan")) for c in compiled)
+    lines.append(f"| **all {len(per)} functions** | {len(compiled)} | {total_self:.2f} | "
+                 f"{total_cpu:.2f} | |")
     return "\n".join(lines)
 
 

@@ -25,7 +25,7 @@ from service.cli.service_process import ServiceProcess
 from service.wire.site import load_site
 from service.wire.zenoh_session import free_tcp_endpoint
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -37,8 +37,7 @@ def main(argv: list[str] | None = None) -> int:
     site = load_site(args.site)
     endpoint = free_tcp_endpoint()
     print(f"demo: starting railtwin serve for site {site.site_id!r} on {endpoint} "
-          "(the physics loads from numba's cache, which make venv filled; without it the first "
-          "start compiles it: minutes, up to 15 are waited for)", flush=True)
+          "(the first start compiles the physics: allow a few minutes; up to 15 are waited for)", flush=True)
     with tempfile.TemporaryDirectory(prefix="railtwin-demo-state-") as state, ServiceProcess(
         args.site, listen=endpoint, recordings=args.recordings, start_timeout=900.0,
         extra_args=("--state", state),
