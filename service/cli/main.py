@@ -23,7 +23,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import IO, Any, NoReturn, cast
 
-from service.cli import clients, demo, diagnose, fleet, recover, replay, router, serve
+from service.cli import clients, demo, diagnose, fleet, recover, replay, router, serve, warm
 from service.cli.common import (
     EXIT_CODES_HELP,
     EXIT_FAILURE,
@@ -456,7 +456,7 @@ BUILTIN_COMMANDS = (register_simulate, register_schema, register_figures)
 SERVICE_COMMANDS: tuple[Callable[[Any], Any], ...] = (
     serve.register, clients.register_feed, clients.register_feed_measured,
     clients.register_synthesize, replay.register, diagnose.register, recover.register,
-    demo.register, router.register, fleet.register,
+    demo.register, router.register, fleet.register, warm.register,
 )
 """The service's subcommands: serve, feed, feed-measured, synthesize, replay, diagnose,
 recover, demo, router."""
