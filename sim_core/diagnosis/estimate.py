@@ -51,6 +51,7 @@ from sim_core.diagnosis.forward import (
     WheelOnSite,
     damping_ratio_of,
     simulate_window,
+    typical_rounded_depth,
     wheel_table,
     with_damping_ratio,
 )
@@ -59,7 +60,14 @@ from sim_core.diagnosis.turns import find_anchors
 from sim_core.rail import RailProfile
 from sim_core.wheel import TWO_PI
 
-__all__ = ["DEFAULT_OPTIONS", "FitOptions", "FlatEstimate", "estimate_flat"]
+__all__ = [
+    "DEFAULT_OPTIONS",
+    "FitOptions",
+    "FlatEstimate",
+    "estimate_flat",
+    "make_flat",
+    "record_noise",
+]
 
 LENGTH_GRID = (0.006, 0.01, 0.015, 0.02, 0.03, 0.04, 0.055, 0.07, 0.09, 0.115, 0.14)
 """m: the coarse grid of flat lengths tried for each kind."""
@@ -101,6 +109,8 @@ class FitOptions:
     damping_ratios: tuple[float, ...] = (0.0, 0.15, 0.35, 0.6)
     refine_rounds: int = 2
     dof_per_window: float = 1.5
+    site_damping_band: float = 2.0
+    max_earlier_turns: int = 0
 
 
 DEFAULT_OPTIONS = FitOptions()
@@ -115,6 +125,7 @@ class Candidate:
     zeta: float
     cost: float
     centres: NDArray[np.float64]
+    depth_factor: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -142,6 +153,9 @@ class FlatEstimate:
     windows: tuple[tuple[float, float], ...]
     profile: tuple[tuple[str, float, float], ...] = field(repr=False)
     wall_time: float = 0.0
+    depth_factor: float = 1.0
+    interval_kinds: tuple[FlatKind, ...] = ()
+    noise_level: float = 0.0
 
     @property
     def fit_rms(self) -> float:
@@ -161,17 +175,18 @@ class _Problem:
     win: list[tuple[int, int]]
     anchors: NDArray[np.float64]
     rails: RailTables
-    evaluated: dict[tuple[str, float, float], Candidate] = field(default_factory=dict)
-    tables: dict[tuple[str, float], ConstraintTable] = field(default_factory=dict)
-    templates: dict[tuple[str, float, float], tuple[NDArray[np.float64], NDArray[np.float64]]] = (
-        field(default_factory=dict)
-    )
+    evaluated: dict[tuple[str, float, float, float], Candidate] = field(default_factory=dict)
+    tables: dict[tuple[str, float, float], ConstraintTable] = field(default_factory=dict)
+    templates: dict[
+        tuple[str, float, float, float], tuple[NDArray[np.float64], NDArray[np.float64]]
+    ] = field(default_factory=dict)
     turns: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     period_band: tuple[float, float] = (0.0, 0.0)
+    max_earlier_turns: int = 0
 
     def template(self, flat: Flat, zeta: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(τ, filtered force): the flat's centre under the wheel at τ = 0 (kept)."""
-        tkey = (flat.kind, round(flat.length, 9), round(zeta, 9))
+        tkey = (flat.kind, round(flat.length, 9), round(flat.depth, 12), round(zeta, 9))
         got = self.templates.get(tkey)
         if got is not None:
             return got
@@ -185,7 +200,13 @@ class _Problem:
         v = self.speed
         half = 0.5 * flat.length / v
         t0, t1 = -(half + PRE_ROLL), half + POST_ROLL
-        key = (flat.kind, flat.length)
+        # a wheel whose last impact has not died out by this one arrives ringing: start the
+        # template that many turns earlier, so the same flat's earlier impacts set the state
+        turns_before = earlier_turns(
+            self.wheel, zeta, TWO_PI * self.wheel.radius / v, self.max_earlier_turns
+        )
+        t0 -= turns_before * TWO_PI * self.wheel.radius / v
+        key = (flat.kind, flat.length, flat.depth)
         table = self.tables.get(key)
         if table is None:  # the same flat is tried at several damping ratios
             table = wheel_table(self.wheel.radius, flat.with_phase(0.0), self.rails, v * t0, v * t1)
@@ -196,22 +217,30 @@ class _Problem:
         out = simulate_window(wheel, v, table, t0, t1, self.fine_rate)
         return out.t, _clip(self.sensor.filter(out.force, self.fine_rate), self.wheel.load)
 
-    def evaluate(self, kind: FlatKind, length: float, zeta: float) -> Candidate:
-        key = (kind, round(length, 9), round(zeta, 9))
+    def evaluate(
+        self, kind: FlatKind, length: float, zeta: float, depth_factor: float = 1.0
+    ) -> Candidate:
+        key = (kind, round(length, 9), round(zeta, 9), round(depth_factor, 6))
         got = self.evaluated.get(key)
         if got is not None:
             return got
-        R = self.wheel.radius
-        flat = Flat.ideal(R, length) if kind == "flat" else Flat.rounded(R, length)
+        flat = make_flat(self.wheel.radius, kind, length, depth_factor)
         tau, tf = self.template(flat, zeta)
         half = 0.5 * length / self.speed
         windows = [(self.t[i0:i1], self.f[i0:i1]) for i0, i1 in self.win]
         centres, total = _align_periodic(
             tau, tf, windows, self.anchors, self.turns, half, self.period_band
         )
-        cand = Candidate(kind, length, zeta, total, centres)
+        cand = Candidate(kind, length, zeta, total, centres, depth_factor)
         self.evaluated[key] = cand
         return cand
+
+
+def make_flat(radius: float, kind: FlatKind, length: float, depth_factor: float = 1.0) -> Flat:
+    """A fresh flat of ``length``, or a worn one of depth ``depth_factor``·l²/16R."""
+    if kind == "flat":
+        return Flat.ideal(radius, length)
+    return Flat.rounded(radius, length, depth_factor * typical_rounded_depth(radius, length))
 
 
 CLIP = 2.0
@@ -327,7 +356,7 @@ def _contrast(
     explains windows a fraction of a turn away (where a real flat has nothing): the
     significance over the largest of those null significances."""
     R = prob.wheel.radius
-    flat = Flat.ideal(R, best.length) if best.kind == "flat" else Flat.rounded(R, best.length)
+    flat = make_flat(R, best.kind, best.length, best.depth_factor)
     tau, tf = prob.template(flat, best.zeta)
     half = 0.5 * best.length / prob.speed
     t, f = prob.t, prob.f
@@ -390,7 +419,7 @@ def _refine(
                 iz = zetas.index(z)
                 zlo, zhi = zetas[max(iz - 1, 0)], zetas[min(iz + 1, len(zetas) - 1)]
             else:
-                zlo, zhi = max(0.0, z - 0.06), min(zetas[-1], z + 0.06)
+                zlo, zhi = max(zetas[0], z - 0.06), min(zetas[-1], z + 0.06)
             _golden(
                 lambda zz, ln=ln: prob.evaluate(kind, ln, zz).cost,
                 zlo,
@@ -411,9 +440,15 @@ def _refine(
 
 
 def _best(
-    prob: _Problem, kind: str, *, length: float | None = None, zeta: float | None = None
+    prob: _Problem,
+    kind: str,
+    *,
+    length: float | None = None,
+    zeta: float | None = None,
+    depth_factor: float | None = 1.0,
 ) -> Candidate:
-    """The cheapest evaluated candidate of ``kind`` (at ``length`` or at ``zeta`` if given)."""
+    """The cheapest evaluated candidate of ``kind`` (at ``length``, ``zeta`` and
+    ``depth_factor`` if given)."""
     return min(
         (
             c
@@ -421,6 +456,7 @@ def _best(
             if c.kind == kind
             and (length is None or c.length == length)
             and (zeta is None or c.zeta == zeta)
+            and (depth_factor is None or c.depth_factor == depth_factor)
         ),
         key=lambda c: c.cost,
     )
@@ -464,6 +500,91 @@ def _interval(points: list[tuple[float, float]], j_max: float, best: float) -> t
     return float(min(lo, best)), float(max(hi, best))
 
 
+RING_LEFT = 0.01
+"""The fraction of an impact's ringing that may be left when the next turn's flat arrives
+for a template to start from steady rolling (1 %: a 10·P impact leaves 0.1·P, a few
+times the sensor noise)."""
+
+
+
+def slowest_decay(wheel: WheelOnSite, zeta: float) -> float:
+    """1/s: the smallest decay rate of the linearised wheel on its foundation damped to
+    ``zeta`` (the contact linearised at the static load); inf on a rigid foundation, whose
+    only mode, the undamped contact spring, the model leaves ringing at the same flat
+    through every turn (and so to the template's own pre-roll)."""
+    f = wheel.foundation
+    if not f.is_compliant:
+        return math.inf
+    m, M, k = wheel.mass, f.mass, f.stiffness
+    c = 2.0 * zeta * math.sqrt(k * M)
+    # Hertz: F = C δ^1.5, dF/dδ at P is 1.5 P / δ0 with δ0 = (P/C)^(2/3)
+    kc = 1.5 * wheel.load / (wheel.load / wheel.contact.coefficient) ** (2.0 / 3.0)
+    a = np.array(
+        [
+            [0.0, 1.0, 0.0, 0.0],
+            [-kc / m, 0.0, kc / m, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+            [kc / M, 0.0, -(kc + k) / M, -c / M],
+        ]
+    )
+    return float(np.min(-np.linalg.eigvals(a).real))
+
+
+def earlier_turns(wheel: WheelOnSite, zeta: float, period: float, max_turns: int) -> int:
+    """Turns before the flat a template starts: 0 when one turn's decay leaves at most
+    ``RING_LEFT`` of the ringing, else enough turns for that (at most ``max_turns``)."""
+    sigma = slowest_decay(wheel, zeta)
+    if max_turns <= 0 or not math.isfinite(sigma):
+        return 0
+    if sigma <= 0.0:
+        return max_turns
+    need = math.log(1.0 / RING_LEFT) / (sigma * period)  # turns for the ringing to die out
+    return min(max_turns, max(0, math.ceil(need) - 1))
+
+
+DEPTH_FACTORS = (0.7, 1.3)
+"""A worn flat's depth is fitted within these multiples of l²/16R (the spread of worn
+flats' depths in the literature the wide validation space follows)."""
+
+
+def _refine_depth(prob: _Problem, cand: Candidate, options: FitOptions) -> Candidate:
+    """Fit a worn flat's depth: golden sections on the depth factor, then on the length at
+    that depth (depth and length trade off: a deeper flat looks like a longer one), twice."""
+    z, ln, df = cand.zeta, cand.length, 1.0
+    for _ in range(2):
+        _golden(
+            lambda dd, ln=ln: prob.evaluate("rounded_flat", ln, z, dd).cost,
+            DEPTH_FACTORS[0],
+            DEPTH_FACTORS[1],
+            options.refine_evaluations - 1,
+        )
+        df = _best(prob, "rounded_flat", length=ln, zeta=z, depth_factor=None).depth_factor
+        _golden(
+            lambda ll, df=df: prob.evaluate("rounded_flat", ll, z, df).cost,
+            0.9 * ln,
+            1.1 * ln,
+            options.refine_evaluations - 2,
+        )
+        ln = _best(prob, "rounded_flat", zeta=z, depth_factor=df).length
+    return _best(prob, "rounded_flat", zeta=z, depth_factor=None)
+
+
+NOISE_DIFFERENCE_ORDER = 3
+"""The record's noise is estimated from its third differences: the measuring chain's
+low-pass leaves little of the force's own content there, white noise keeps var·20."""
+
+
+def record_noise(f: NDArray[np.float64]) -> float:
+    """σ (N) of the record's white noise: the median absolute third difference / 0.6745,
+    over sqrt(20) (the variance of a third difference of white noise). Robust to the
+    impacts, which fill a small part of the record; an upper bound when the force itself
+    has content near the Nyquist rate."""
+    if f.size <= NOISE_DIFFERENCE_ORDER + 1:
+        return 0.0
+    d = np.diff(f, NOISE_DIFFERENCE_ORDER)
+    return float(np.median(np.abs(d)) / 0.6745 / math.sqrt(20.0))
+
+
 def estimate_flat(
     wheel: WheelOnSite,
     speed: float,
@@ -485,6 +606,7 @@ def estimate_flat(
         raise ValueError("diagnosis: the measured record has non-finite values")
     R, P = wheel.radius, wheel.load
     rate = (t.size - 1) / (t[-1] - t[0])
+    noise = record_noise(f)
     anchors = find_anchors(t, f, P, R, speed)
     v = speed
     if anchors.times.size >= 2:
@@ -526,6 +648,7 @@ def estimate_flat(
             windows,
             (),
             time.perf_counter() - start,
+            noise_level=noise,
         )
     kept_a = np.array(kept)
     t_speed = TWO_PI * R / speed
@@ -546,6 +669,7 @@ def estimate_flat(
         RailTables(RailProfile.flat()),
         turns=turns,
         period_band=band,
+        max_earlier_turns=options.max_earlier_turns,
     )
     grid = tuple(sorted(options.lengths))
     f_site = wheel.foundation
@@ -553,7 +677,13 @@ def estimate_flat(
     zeta_site = 0.0
     if f_site.is_compliant:
         zeta_site = damping_ratio_of(f_site)
-        zetas = tuple(sorted({round(zeta_site, 6), *options.damping_ratios}))
+        if zeta_site > 0.0 and options.site_damping_band > 1.0:
+            # the site states its damper: trust it within a factor (a track's damping is
+            # never zero, so a zero damper means "not known" and the whole range is searched)
+            b = options.site_damping_band
+            zetas = (round(zeta_site / b, 6), round(zeta_site, 6), round(zeta_site * b, 6))
+        else:
+            zetas = tuple(sorted({round(zeta_site, 6), *options.damping_ratios}))
     # 1. coarse: every kind, length and damping ratio of the grids
     for kind in options.kinds:
         for z in zetas:
@@ -567,8 +697,9 @@ def estimate_flat(
         best_of_kind[kind] = _refine(
             prob, kind, cur.length, cur.zeta, zetas, grid, options, options.refine_rounds
         )
+    if "rounded_flat" in best_of_kind:
+        best_of_kind["rounded_flat"] = _refine_depth(prob, best_of_kind["rounded_flat"], options)
     best = min(best_of_kind.values(), key=lambda c: c.cost)
-    at_zeta = [c for c in prob.evaluated.values() if c.zeta == best.zeta]
     n_eff = n * (min(1.0, 2.0 * sensor.cutoff_hz / rate) if sensor.cutoff_hz else 1.0)
     n_eff = max(n_eff, 1.0)
     significance = (cost_round - best.cost) / (best.cost / n_eff) if best.cost > 0 else math.inf
@@ -578,6 +709,7 @@ def estimate_flat(
     # and a worn one ~25 % longer can make the same windows), each walked out from its best
     # length at its damping until the cost passes j_max
     lo, hi = best.length, best.length
+    interval_kinds: list[FlatKind] = []
     for cand in best_of_kind.values():
         if cand.cost > j_max and cand is not best:
             continue
@@ -586,16 +718,19 @@ def estimate_flat(
                 ln = cand.length * (1.0 + direction * step)
                 if not 0.002 <= ln <= 2.0 * grid[-1]:
                     break
-                if prob.evaluate(cand.kind, ln, cand.zeta).cost > j_max:
+                if prob.evaluate(cand.kind, ln, cand.zeta, cand.depth_factor).cost > j_max:
                     break
         points = [
             (c.length, c.cost)
             for c in prob.evaluated.values()
-            if c.zeta == cand.zeta and c.kind == cand.kind
+            if c.zeta == cand.zeta and c.kind == cand.kind and c.depth_factor == cand.depth_factor
         ]
         k_lo, k_hi = _interval(points, j_max, cand.length)
         lo, hi = min(lo, k_lo), max(hi, k_hi)
-    at_zeta = [c for c in prob.evaluated.values() if c.zeta == best.zeta]
+        interval_kinds.append(cand.kind)
+    at_zeta = [
+        c for c in prob.evaluated.values() if c.zeta == best.zeta and c.depth_factor == 1.0
+    ]
     lo *= 1.0 - options.speed_uncertainty
     hi *= 1.0 + options.speed_uncertainty
     # the detection floor: above ~75 km/h a few µm of unknown roughness excite as much dynamic
@@ -610,11 +745,7 @@ def estimate_flat(
     if found:
         phases = np.exp(1j * (-(v * best.centres) / R))
         phase = float(np.angle(np.mean(phases))) % TWO_PI
-        flat = (
-            Flat.ideal(R, best.length, phase)
-            if best.kind == "flat"
-            else Flat.rounded(R, best.length, None, phase)
-        )
+        flat = make_flat(R, best.kind, best.length, best.depth_factor).with_phase(phase)
     profile = tuple(
         (c.kind, c.length, c.cost) for c in sorted(at_zeta, key=lambda c: (c.kind, c.length))
     )
@@ -634,4 +765,7 @@ def estimate_flat(
         windows,
         profile,
         time.perf_counter() - start,
+        best.depth_factor,
+        tuple(interval_kinds),
+        noise,
     )
