@@ -24,6 +24,7 @@ from service.site_physics import SitePhysics
 from sim_core.diagnosis.estimate import FlatEstimate, estimate_flat, make_flat
 from sim_core.diagnosis.forward import (
     Flat,
+    FlatKind,
     RailTables,
     WheelOnSite,
     flat_times,
@@ -205,7 +206,9 @@ class Diagnoser:
         interval, every kind that fits, and the damping ratio's band (see docs/diagnosis.md)."""
         if est.best_kind is None or est.flat is None:
             return point, point
-        kinds = est.interval_kinds or (est.best_kind,)
+        # both kinds, whichever fitted: at speed a fresh flat and a worn one of the same length
+        # hit very differently, and the kind is the fit's least certain answer there
+        kinds: tuple[FlatKind, ...] = ("flat", "rounded_flat")
         zetas = {est.damping_ratio}
         if wheel.foundation.is_compliant:
             zetas |= {est.damping_ratio * (1.0 - LINE_DAMPING_BAND),

@@ -111,6 +111,7 @@ class FitOptions:
     dof_per_window: float = 1.5
     site_damping_band: float = 2.0
     max_earlier_turns: int = 0
+    screen: bool = True
 
 
 DEFAULT_OPTIONS = FitOptions()
@@ -156,6 +157,7 @@ class FlatEstimate:
     depth_factor: float = 1.0
     interval_kinds: tuple[FlatKind, ...] = ()
     noise_level: float = 0.0
+    screened: bool = False
 
     @property
     def fit_rms(self) -> float:
@@ -569,6 +571,42 @@ def _refine_depth(prob: _Problem, cand: Candidate, options: FitOptions) -> Candi
     return _best(prob, "rounded_flat", zeta=z, depth_factor=None)
 
 
+SCREEN_NOISE_SIGMAS = 4.0
+"""The record's largest deviation from P, less this many noise σ, is what the screen
+compares (4σ: the largest of a few thousand samples of white noise)."""
+
+
+def _dismissed(
+    wheel: WheelOnSite,
+    speed: float,
+    sensor: SensorModel,
+    rate: float,
+    f: NDArray[np.float64],
+    noise: float,
+    zeta_max: float,
+    options: FitOptions,
+) -> bool:
+    """A round wheel dismissed without a fit: the record's largest deviation from the static
+    load (less ``SCREEN_NOISE_SIGMAS`` noise σ) is below the smallest deviation the shortest
+    flat the fit would report makes, by both kinds (its template at the detection floor, the
+    most damped foundation searched, through the site's chain). A flat below the floor is
+    then dismissed too: the fit reports one only when it stands out of its record."""
+    P = wheel.load
+    deviation = float(np.max(np.abs(f - P))) - SCREEN_NOISE_SIGMAS * noise
+    if deviation <= 0.0:
+        return True
+    prob = _Problem(
+        wheel, speed, sensor, sensor.fine_rate(rate), np.zeros(0), np.zeros(0), [],
+        np.zeros(0), RailTables(RailProfile.flat()),
+    )
+    floor = detection_floor(speed, options)
+    smallest = min(
+        float(np.max(np.abs(prob.template(make_flat(wheel.radius, kind, floor), zeta_max)[1] - P)))
+        for kind in options.kinds
+    )
+    return deviation < smallest
+
+
 NOISE_DIFFERENCE_ORDER = 3
 """The record's noise is estimated from its third differences: the measuring chain's
 low-pass leaves little of the force's own content there, white noise keeps var·20."""
@@ -607,6 +645,24 @@ def estimate_flat(
     R, P = wheel.radius, wheel.load
     rate = (t.size - 1) / (t[-1] - t[0])
     noise = record_noise(f)
+    f_site = wheel.foundation
+    zetas: tuple[float, ...] = (0.0,)
+    zeta_site = 0.0
+    if f_site.is_compliant:
+        zeta_site = damping_ratio_of(f_site)
+        if zeta_site > 0.0 and options.site_damping_band > 1.0:
+            # the site states its damper: trust it within a factor (a track's damping is
+            # never zero, so a zero damper means "not known" and the whole range is searched)
+            b = options.site_damping_band
+            zetas = (round(zeta_site / b, 6), round(zeta_site, 6), round(zeta_site * b, 6))
+        else:
+            zetas = tuple(sorted({round(zeta_site, 6), *options.damping_ratios}))
+    if options.screen and _dismissed(wheel, speed, sensor, rate, f, noise, zetas[-1], options):
+        cost = float(np.sum((_clip(f, P) - P) ** 2))
+        return FlatEstimate(
+            None, None, 0.0, 0.0, 0.0, cost, cost, int(f.size), 0.0, 0.0, speed, zetas[-1],
+            (), (), time.perf_counter() - start, noise_level=noise, screened=True,
+        )
     anchors = find_anchors(t, f, P, R, speed)
     v = speed
     if anchors.times.size >= 2:
@@ -672,18 +728,6 @@ def estimate_flat(
         max_earlier_turns=options.max_earlier_turns,
     )
     grid = tuple(sorted(options.lengths))
-    f_site = wheel.foundation
-    zetas: tuple[float, ...] = (0.0,)
-    zeta_site = 0.0
-    if f_site.is_compliant:
-        zeta_site = damping_ratio_of(f_site)
-        if zeta_site > 0.0 and options.site_damping_band > 1.0:
-            # the site states its damper: trust it within a factor (a track's damping is
-            # never zero, so a zero damper means "not known" and the whole range is searched)
-            b = options.site_damping_band
-            zetas = (round(zeta_site / b, 6), round(zeta_site, 6), round(zeta_site * b, 6))
-        else:
-            zetas = tuple(sorted({round(zeta_site, 6), *options.damping_ratios}))
     # 1. coarse: every kind, length and damping ratio of the grids
     for kind in options.kinds:
         for z in zetas:
