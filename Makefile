@@ -59,7 +59,7 @@ test: $(STAMP)
 	echo "make test: all checks passed"
 
 demo: $(STAMP)
-	$(BIN)/python -m service.demo
+	$(BIN)/python -m service.cli.demo
 
 bench: $(STAMP)
 	$(BIN)/python -m benchmarks.run_all

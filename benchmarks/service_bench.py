@@ -33,16 +33,16 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from schemas.messages import WheelPassage  # noqa: E402
-from service.feeder import (  # noqa: E402
+from service.cli.service_process import ServiceProcess  # noqa: E402
+from service.clients.feeder import (  # noqa: E402
     Collector,
     declare_passage_publisher,
     send_train,
     wait_matching,
 )
-from service.keyspace import SiteKeys  # noqa: E402
-from service.service_process import ServiceProcess  # noqa: E402
-from service.site import load_site  # noqa: E402
-from service.zenoh_session import build_config, free_tcp_endpoint, open_session  # noqa: E402
+from service.wire.keyspace import SiteKeys  # noqa: E402
+from service.wire.site import load_site  # noqa: E402
+from service.wire.zenoh_session import build_config, free_tcp_endpoint, open_session  # noqa: E402
 
 SPEED = 160.0 / 3.6
 AXLES_IN_CAR = (3.7, 6.2, 22.7, 25.2)

@@ -37,12 +37,12 @@ from pathlib import Path
 from typing import Any
 
 from schemas.messages import WheelPassage
-from service.feeder import Collector, declare_passage_publisher, wait_matching
-from service.keyspace import SiteKeys
-from service.mcap_recover import recover, salvage
-from service.service_process import ServiceProcess
-from service.site import load_site
-from service.zenoh_session import build_config, free_tcp_endpoint, open_session
+from service.cli.service_process import ServiceProcess
+from service.clients.feeder import Collector, declare_passage_publisher, wait_matching
+from service.recording.mcap_recover import recover, salvage
+from service.wire.keyspace import SiteKeys
+from service.wire.site import load_site
+from service.wire.zenoh_session import build_config, free_tcp_endpoint, open_session
 
 ROOT = Path(__file__).resolve().parents[1]
 SITE = ROOT / "examples/site.toml"

@@ -2,7 +2,7 @@
 
 Every message is JSON with a ``schema_version``; a message's Zenoh encoding is
 ``application/json;railtwin.<Name>/<version>`` (``encoding_schema``). Key space
-(``service.keyspace``), for a site ``<site>``:
+(``service.wire.keyspace``), for a site ``<site>``:
 
 | key | direction | model |
 |---|---|---|
@@ -47,7 +47,7 @@ KEY_CHUNK = r"^[A-Za-z0-9_.\-]{1,96}$"
 """An identifier that is safe as one chunk of a Zenoh key (no ``/ * $ ? #``), 1 to 96 long."""
 
 MAX_PASSAGE_SAMPLES = 150_000
-"""Cap on the samples of one passage, length/speed·output_sample_rate + 1 (``service.limits``)."""
+"""Cap on the samples of one passage, length/speed·output_sample_rate + 1 (``service.wire.limits``)."""
 
 OUTPUT_BYTES_PER_SAMPLE = 225
 """Bytes of JSON a passage publishes per sample, at most: nine series of ≤ 25 characters."""

@@ -4,7 +4,7 @@ The rail profile, material, contact law and foundation use the scenario's
 models (CONTRACT.md); a site adds its id, its length and the sample rate of
 the series it publishes. A rail may also come from a CSV file of ``x,y``
 rows (m), ``{kind = "file", path = "rail.csv"}``, the path relative to the
-site file (``service.site`` reads it into a sampled rail).
+site file (``service.wire.site`` reads it into a sampled rail).
 
     >>> s = SiteConfig.model_validate({
     ...     "site_id": "km12", "length": 6.0, "output_sample_rate": 10000.0,

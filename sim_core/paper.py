@@ -3,7 +3,7 @@
 Pure physics (no plotting, no I/O): every ``figN()`` runs the set-up of
 MODEL.md §6 with sim_core and returns a small frozen dataclass holding the
 arrays a figure draws and a ``facts`` dict of plain floats/ints/lists — the
-numbers ``tests/test_paper_figures.py`` asserts and ``service.figures``
+numbers ``tests/test_paper_figures.py`` asserts and ``service.cli.figures``
 writes to ``facts.json``.
 
 The paper's parameters: m = 400 kg, P = 10·m·g, R = 0.475 m, E = 2.14e11 Pa,

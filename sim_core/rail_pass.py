@@ -1,7 +1,7 @@
 """One wheel over a rail that keeps its dents: table → passage → dents → the rail after.
 
 The one pass loop of both the scenario runner's multi-pass runs
-(``sim_core.multipass``) and the streaming site (``service.site_physics``):
+(``sim_core.multipass``) and the streaming site (``service.physics.site_physics``):
 
 1. the constraint table of the wheel on the rail as it is now
    (:class:`ConstraintTables`: a round wheel's table is kept per radius and

@@ -30,9 +30,9 @@ def contract_example() -> dict[str, Any]:
 
 
 def run_cli_subprocess(*args: str, stdin: str | None = None) -> subprocess.CompletedProcess[str]:
-    """``python -m service.cli ARGS`` in a child process, from the repository root."""
+    """``python -m service.cli.main ARGS`` in a child process, from the repository root."""
     return subprocess.run(
-        [sys.executable, "-m", "service.cli", *args],
+        [sys.executable, "-m", "service.cli.main", *args],
         cwd=ROOT,
         input=stdin,
         capture_output=True,

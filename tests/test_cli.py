@@ -14,8 +14,8 @@ import pytest
 
 from schemas import ErrorReport, Result, Scenario
 from schemas.scenario import EXAMPLE_JSON
-from service import cli
-from service.scenario_runner import package_result
+from service.cli import main as cli
+from service.physics.scenario_runner import package_result
 from tests.conftest import EXAMPLE_SCENARIOS, EXAMPLES
 
 Run = Callable[..., Any]
@@ -112,7 +112,7 @@ def test_runtime_failure_exits_1(
     def boom(scenario: Scenario, progress: Any = None) -> Result:
         raise RuntimeError("integrator diverged")
 
-    monkeypatch.setattr("service.scenario_runner.run_scenario", boom)
+    monkeypatch.setattr("service.physics.scenario_runner.run_scenario", boom)
     path = write(tmp_path, "s.json", EXAMPLE_JSON)
     code, _, err = run_main(["simulate", str(path), "--out", str(tmp_path / "r.json")], capsys)
     assert code == 1 and "simulation failed: RuntimeError: integrator diverged" in err
@@ -198,9 +198,9 @@ def fake_multipass(monkeypatch: pytest.MonkeyPatch) -> list[dict[str, Any]]:
         sampled=factory("sampled"),
     )
     monkeypatch.setitem(sys.modules, "sim_core.multipass", multipass)
-    # the runner builds wheel and rail through service.physics_inputs (imported already)
-    monkeypatch.setattr("service.physics_inputs.WheelOutline", wheel.WheelOutline)
-    monkeypatch.setattr("service.physics_inputs.RailProfile", rail.RailProfile)
+    # the runner builds wheel and rail through service.physics.inputs (imported already)
+    monkeypatch.setattr("service.physics.inputs.WheelOutline", wheel.WheelOutline)
+    monkeypatch.setattr("service.physics.inputs.RailProfile", rail.RailProfile)
     return calls
 
 
@@ -375,7 +375,7 @@ def test_batch_plumbing_own_wall_times_and_exit_2(
         events.append("warm-up")
         return 0.0
 
-    monkeypatch.setattr("service.scenario_runner.warm_up", warm_up)
+    monkeypatch.setattr("service.physics.scenario_runner.warm_up", warm_up)
     out_dir = tmp_path / "results"
     code, stdout, err = run_main(
         ["simulate", *map(str, batch_files), "--out-dir", str(out_dir)], capsys
@@ -416,7 +416,7 @@ def test_batch_runtime_failure_exits_1_others_written(
         return plain(wheel, rail, spec, **kw)
 
     monkeypatch.setattr(fake, "simulate_passes", simulate_passes)
-    monkeypatch.setattr("service.scenario_runner.warm_up", lambda: 0.0)
+    monkeypatch.setattr("service.physics.scenario_runner.warm_up", lambda: 0.0)
     a = json.loads(EXAMPLE_JSON)
     b = dict(a, duration=0.01)
     paths = [str(write(tmp_path, "a.json", a)), str(write(tmp_path, "b.json", b))]
@@ -489,9 +489,9 @@ def test_figures_calls_make_figures(
         made.append(out_dir / "fig3.png")
         return made
 
-    fake = types.ModuleType("service.figures")
+    fake = types.ModuleType("service.cli.figures")
     fake.make_figures = make_figures  # type: ignore[attr-defined]
-    monkeypatch.setitem(sys.modules, "service.figures", fake)
+    monkeypatch.setitem(sys.modules, "service.cli.figures", fake)
     code, out, _ = run_main(["figures", "--out", str(tmp_path / "figs")], capsys)
     assert code == 0 and out.strip() == str(tmp_path / "figs" / "fig3.png")
     assert (tmp_path / "figs").is_dir()

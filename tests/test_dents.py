@@ -349,7 +349,7 @@ def test_a_flat_wheels_table_on_a_dented_rail_is_the_whole_tabulation(
 
 
 def test_a_restored_rail_is_the_stored_one() -> None:
-    """A dented rail stored as samples (service.rail_store) comes back as base + overlay
+    """A dented rail stored as samples (service.physics.rail_store) comes back as base + overlay
     with the same heights, and the next press lands on the same lattice."""
     base = RailProfile.cosine(2e-6, 0.06)
     rail = DentedRail.of(base, 0.0, 1.0)

@@ -13,11 +13,11 @@ from pydantic import ValidationError
 
 from schemas.diagnosis import Diagnosis, DiagnosisConfig, MeasuredPassage
 from schemas.messages import WheelPassage
-from service.cli import main as cli_main
-from service.diagnosis import Diagnoser, MeasurementError
-from service.measured_io import MeasuredFileError, read_measured_csv
-from service.site import load_site
-from service.synthesize import measure
+from service.cli.main import main as cli_main
+from service.clients.measured_io import MeasuredFileError, read_measured_csv
+from service.clients.synthesize import measure
+from service.physics.diagnosis import Diagnoser, MeasurementError
+from service.wire.site import load_site
 from sim_core.constraint import tabulate_constraint
 from sim_core.contact_laws import ContactLaw, ContactModel
 from sim_core.diagnosis.combined import add_tables

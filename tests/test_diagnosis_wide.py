@@ -13,10 +13,10 @@ import pytest
 
 from schemas.diagnosis import Diagnosis, MeasuredPassage
 from schemas.messages import WheelPassage
-from service.cli import main as cli_main
-from service.diagnosis import EXPLAINED_RATIO, Diagnoser
-from service.site import load_site
-from service.synthesize import measure
+from service.cli.main import main as cli_main
+from service.clients.synthesize import measure
+from service.physics.diagnosis import EXPLAINED_RATIO, Diagnoser
+from service.wire.site import load_site
 from sim_core.diagnosis.estimate import estimate_flat, record_noise
 from sim_core.diagnosis.forward import Flat
 from sim_core.diagnosis.sensor import SensorModel

@@ -11,7 +11,7 @@ import pytest
 import sim_core
 
 MODULES = sorted(m.name for m in pkgutil.walk_packages(sim_core.__path__, prefix="sim_core."))
-MODULES += ["service.physics_inputs"]
+MODULES += ["service.physics.inputs"]
 
 
 def test_every_module_is_listed() -> None:

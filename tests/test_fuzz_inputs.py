@@ -18,8 +18,8 @@ from hypothesis import strategies as st
 
 from schemas.messages import ServiceError, WheelPassage
 from schemas.site import SiteConfig
-from service.stub_physics import StubPhysics
-from service.twin import Inbound, Twin
+from service.physics.stub import StubPhysics
+from service.twin.twin import Inbound, Twin
 
 SITE = SiteConfig.model_validate({
     "site_id": "fuzz", "length": 3.0, "output_sample_rate": 2000.0, "contact": "hertz",

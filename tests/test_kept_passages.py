@@ -6,8 +6,8 @@ import doctest
 
 import pytest
 
-import service.kept_passages
-from service.kept_passages import KeptPassages
+import service.twin.kept_passages
+from service.twin.kept_passages import KeptPassages
 
 
 def test_bounded_in_number_and_in_bytes() -> None:
@@ -44,5 +44,5 @@ def test_bounds_must_make_sense() -> None:
 
 
 def test_the_worked_example_holds() -> None:
-    result = doctest.testmod(service.kept_passages)
+    result = doctest.testmod(service.twin.kept_passages)
     assert result.attempted >= 1 and result.failed == 0

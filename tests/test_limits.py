@@ -23,11 +23,11 @@ from schemas.diagnosis import MAX_MEASURED_SAMPLES, MeasuredPassage
 from schemas.messages import Health, PassageResult, ServiceError, WheelPassage
 from schemas.scenario import MAX_OUTLINE_POINTS
 from schemas.site import MAX_RAIL_POINTS, SiteConfig
-from service import limits
-from service.keyspace import SiteKeys
-from service.stub_physics import StubPhysics
-from service.twin import Twin, json_encoding
-from service.zenoh_session import build_config, free_tcp_endpoint
+from service.physics.stub import StubPhysics
+from service.twin.twin import Twin, json_encoding
+from service.wire import limits
+from service.wire.keyspace import SiteKeys
+from service.wire.zenoh_session import build_config, free_tcp_endpoint
 
 SITE = SiteConfig.model_validate({
     "site_id": "lim", "length": 6.0, "output_sample_rate": 10_000.0, "contact": "hertz",

@@ -149,7 +149,7 @@ def test_fig9_compliant_foundation() -> None:
 
 def test_make_figures_writes_the_pngs(tmp_path: Path) -> None:
     pytest.importorskip("matplotlib")
-    from service.figures import make_figures
+    from service.cli.figures import make_figures
 
     paths = make_figures(tmp_path, quick=True)
     names = sorted(p.name for p in paths)

@@ -1,4 +1,4 @@
-"""A busy child process leaves once the service that started it is killed (service.parent_watch)."""
+"""A busy child process leaves once the service that started it is killed (service.physics.parent_watch)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from service.parent_watch import exit_when_orphaned
+from service.physics.parent_watch import exit_when_orphaned
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -15,9 +15,9 @@ import pytest
 from schemas.messages import WheelPassage
 from schemas.scenario import Scenario
 from schemas.site import FileRail, SiteConfig
-from service import physics_inputs
-from service.scenario_runner import run_scenario
-from service.site_physics import SitePhysics
+from service.physics import inputs as physics_inputs
+from service.physics.scenario_runner import run_scenario
+from service.physics.site_physics import SitePhysics
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
 

@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from service.rail_store import RailStore, StateMismatchError
+from service.physics.rail_store import RailStore, StateMismatchError
 
 
 def test_state_survives_reopening_and_keeps_the_last_rail(tmp_path: Path) -> None:

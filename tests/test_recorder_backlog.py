@@ -6,9 +6,9 @@ from dataclasses import replace
 from pathlib import Path
 
 from schemas.messages import PassageResult
-from service.mcap_log import read_log
-from service.recorder_process import ProcessRecorder, RecordingPlan
-from service.rerun_recording import entities
+from service.recording.mcap_log import read_log
+from service.recording.recorder_process import ProcessRecorder, RecordingPlan
+from service.recording.rerun_recording import entities
 from tests.test_service_rerun import result, rrd_columns, rrd_texts
 
 TOPIC = "railtwin/s/result"

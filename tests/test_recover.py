@@ -9,9 +9,9 @@ import pytest
 from mcap.reader import make_reader
 
 from schemas.messages import RejectedInput
-from service.cli import main as cli_main
-from service.mcap_log import McapLog
-from service.mcap_recover import read_any, salvage
+from service.cli.main import main as cli_main
+from service.recording.mcap_log import McapLog
+from service.recording.mcap_recover import read_any, salvage
 
 
 def _log(tmp_path: Path, n: int, flush_every: int) -> tuple[Path, list[int]]:
@@ -61,7 +61,7 @@ def test_recover_refuses_to_overwrite_its_input(tmp_path: Path) -> None:
 def test_the_journal_adds_back_the_inputs_the_recorder_never_wrote(tmp_path: Path) -> None:
     """kill -9 of every process: the MCAP lost its last inputs, the journal has them all."""
     from schemas.messages import WheelPassage
-    from service.input_journal import InputJournal
+    from service.recording.input_journal import InputJournal
 
     good = WheelPassage(passage_id="p0", train_id="t", axle_index=0, side="right",
                         timestamp=0.0, speed=30.0, load=5e4, mass=500.0, radius=0.46)
@@ -89,7 +89,7 @@ def test_the_journal_adds_back_the_inputs_the_recorder_never_wrote(tmp_path: Pat
 
 def test_the_journal_adds_back_answers_the_recorder_never_wrote(tmp_path: Path) -> None:
     from schemas.messages import ServiceError
-    from service.input_journal import InputJournal
+    from service.recording.input_journal import InputJournal
 
     err = ServiceError(site_id="x", kind="invalid_passage", message="m", field=None,
                        received_at=1.0).model_dump_json().encode()

@@ -19,10 +19,10 @@ from mcap.writer import Writer
 
 from schemas.diagnosis import MeasuredPassage
 from schemas.messages import RejectedInput, ServiceError, WheelPassage, encoding_schema
-from service import replay_cli
-from service.mcap_log import LoggedMessage, McapLog
-from service.replay import LoggedInput, ReplayError, check_payload, plan_replay, read_logs
-from service.zenoh_session import build_config, free_tcp_endpoint
+from service.cli import replay as replay_cli
+from service.clients.replay import LoggedInput, ReplayError, check_payload, plan_replay, read_logs
+from service.recording.mcap_log import LoggedMessage, McapLog
+from service.wire.zenoh_session import build_config, free_tcp_endpoint
 
 SITE = "km12"
 

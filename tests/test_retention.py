@@ -6,7 +6,7 @@ import os
 from pathlib import Path
 
 from schemas.messages import RejectedInput
-from service.mcap_log import McapLog
+from service.recording.mcap_log import McapLog
 
 
 def test_rotation_deletes_the_oldest_runs_beyond_the_limit(tmp_path: Path) -> None:
@@ -45,7 +45,7 @@ def test_a_single_long_run_gives_up_its_own_oldest_parts(tmp_path: Path) -> None
 
 def test_another_runs_recent_files_are_kept(tmp_path: Path) -> None:
     """Another twin may be writing in the same directory: its files changed lately stay."""
-    from service.retention import enforce_retention
+    from service.recording.retention import enforce_retention
 
     live = tmp_path / "railtwin-km13-live-000.mcap"
     live.write_bytes(b"x" * 10_000)
@@ -58,7 +58,7 @@ def test_another_runs_recent_files_are_kept(tmp_path: Path) -> None:
 
 
 def test_journal_goes_on_in_parts_and_recover_reads_them_all(tmp_path: Path) -> None:
-    from service.input_journal import InputJournal, read_journal
+    from service.recording.input_journal import InputJournal, read_journal
 
     journal = InputJournal(tmp_path / "railtwin-km12-now-inputs.journal", part_bytes=500)
     for i in range(40):

@@ -24,16 +24,16 @@ import zenoh
 
 from schemas.diagnosis import Diagnosis, MeasuredPassage
 from schemas.messages import PassageResult, ServiceError, WheelPassage, encoding_schema
-from service.diagnosis import Diagnoser
-from service.feeder import declare_passage_publisher, wait_matching
-from service.keyspace import SiteKeys
-from service.mcap_log import LoggedMessage, decode, read_log
-from service.rerun_recording import entities
-from service.service_process import ServiceProcess
-from service.site import load_site
-from service.site_physics import SitePhysics
-from service.twin import json_encoding
-from service.zenoh_session import build_config, free_tcp_endpoint
+from service.cli.service_process import ServiceProcess
+from service.clients.feeder import declare_passage_publisher, wait_matching
+from service.physics.diagnosis import Diagnoser
+from service.physics.site_physics import SitePhysics
+from service.recording.mcap_log import LoggedMessage, decode, read_log
+from service.recording.rerun_recording import entities
+from service.twin.twin import json_encoding
+from service.wire.keyspace import SiteKeys
+from service.wire.site import load_site
+from service.wire.zenoh_session import build_config, free_tcp_endpoint
 from sim_core.diagnosis.forward import Flat
 from sim_core.diagnosis.synthetic import Perturbations, synthetic_measurement
 from tests.test_service_rerun import of_passage, passage_indexes, rrd_columns, rrd_texts

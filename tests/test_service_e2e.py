@@ -2,7 +2,7 @@
 
 One module-scoped run feeds good and bad passages to a fresh service, stops it
 with SIGTERM and keeps its MCAP log and .rrd; a second fresh service is fed a
-replay of that log (by ``service.replay_cli`` in a third process) and must
+replay of that log (by ``service.cli.replay`` in a third process) and must
 publish the very same numbers.
 """
 
@@ -32,12 +32,12 @@ from schemas.messages import (
     encoding_schema,
 )
 from schemas.scenario import FlatOutline
-from service.feeder import Collector, declare_passage_publisher, query_health, wait_matching
-from service.keyspace import SiteKeys
-from service.mcap_log import LoggedMessage, decode, model_for_schema, read_log
-from service.rerun_recording import entities
-from service.service_process import ServiceProcess
-from service.zenoh_session import build_config, free_tcp_endpoint
+from service.cli.service_process import ServiceProcess
+from service.clients.feeder import Collector, declare_passage_publisher, query_health, wait_matching
+from service.recording.mcap_log import LoggedMessage, decode, model_for_schema, read_log
+from service.recording.rerun_recording import entities
+from service.wire.keyspace import SiteKeys
+from service.wire.zenoh_session import build_config, free_tcp_endpoint
 from tests.test_service_rerun import of_passage, passage_indexes, rrd_columns, rrd_entities
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -176,7 +176,7 @@ def replayed_run(first_run: Run, tmp_path_factory: pytest.TempPathFactory) -> Ru
         collector = Collector(KEYS)
         sub = session.declare_subscriber(KEYS.all_outputs, collector)
         replay = subprocess.run(
-            [sys.executable, "-m", "service.replay_cli", *map(str, first_run.service.mcap_files),
+            [sys.executable, "-m", "service.cli.replay", *map(str, first_run.service.mcap_files),
              "--connect", endpoint_of(svc), "--rate", "4", "--include-rejected"],
             capture_output=True, text=True, timeout=TIMEOUT, cwd=ROOT,
         )

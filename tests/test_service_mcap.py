@@ -9,7 +9,7 @@ from mcap.reader import make_reader
 from mcap.stream_reader import StreamReader
 
 from schemas.messages import RejectedInput, ServiceError, WheelPassage, encoding_schema
-from service.mcap_log import McapLog, decode, read_log
+from service.recording.mcap_log import McapLog, decode, read_log
 
 PASSAGE = WheelPassage(
     passage_id="t1-a00-r", train_id="t1", axle_index=0, side="right", timestamp=1.7e9,

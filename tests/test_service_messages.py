@@ -17,8 +17,8 @@ from schemas.messages import (
     WheelPassage,
     encoding_schema,
 )
-from service.site import SiteFileError, load_site
-from service.twin import service_error_from_validation
+from service.twin.twin import service_error_from_validation
+from service.wire.site import SiteFileError, load_site
 
 ROOT = Path(__file__).resolve().parents[1]
 GOOD = {

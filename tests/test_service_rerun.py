@@ -9,10 +9,10 @@ import numpy as np
 import pyarrow as pa
 import rerun.chunk as rc
 
-import service.rerun_recording
+import service.recording.rerun_recording
 from schemas.messages import PassageResult, RailState
 from schemas.result import Summary, Transition
-from service.rerun_recording import SLOT_MM, RerunRecording, entities
+from service.recording.rerun_recording import SLOT_MM, RerunRecording, entities
 
 INDEXES = ("x_mm", "passage", "diagnosis", "diagnosis_mm")
 
@@ -177,5 +177,5 @@ def test_a_long_run_goes_on_in_parts_of_one_recording(tmp_path: Path) -> None:
 
 
 def test_the_slot_example_holds() -> None:
-    result = doctest.testmod(service.rerun_recording)
+    result = doctest.testmod(service.recording.rerun_recording)
     assert result.attempted >= 1 and result.failed == 0

@@ -22,12 +22,12 @@ import zenoh
 from schemas.messages import Health, PassageResult, ServiceError, WheelPassage
 from schemas.scenario import FlatOutline
 from schemas.site import SiteConfig
-from service.feeder import declare_passage_publisher, wait_matching
-from service.keyspace import SiteKeys
-from service.limits import passage_samples
-from service.physics_worker import BudgetExceededError, ProcessPhysics
-from service.service_process import ServiceProcess
-from service.zenoh_session import build_config, free_tcp_endpoint
+from service.cli.service_process import ServiceProcess
+from service.clients.feeder import declare_passage_publisher, wait_matching
+from service.physics.worker import BudgetExceededError, ProcessPhysics
+from service.wire.keyspace import SiteKeys
+from service.wire.limits import passage_samples
+from service.wire.zenoh_session import build_config, free_tcp_endpoint
 
 PLASTIC = SiteConfig.model_validate({
     "site_id": "plastic", "length": 3.0, "output_sample_rate": 5000.0,
@@ -199,7 +199,7 @@ def test_port_taken_is_one_line(tmp_path: Path) -> None:
         taken.listen()
         port = taken.getsockname()[1]
         proc = subprocess.run(
-            [sys.executable, "-m", "service.serve_cli", "--site", str(site), "--listen",
+            [sys.executable, "-m", "service.cli.serve", "--site", str(site), "--listen",
              f"tcp/127.0.0.1:{port}", "--physics", "stub", "--no-mcap", "--no-rerun"],
             capture_output=True, text=True, timeout=120,
             cwd=Path(__file__).resolve().parents[1],

@@ -8,9 +8,9 @@ import pytest
 
 from schemas.messages import WheelPassage
 from schemas.site import SiteConfig
-from service.physics_worker import ProcessPhysics
-from service.rail_store import RailStore, StateMismatchError
-from service.serve_cli import open_state
+from service.cli.serve import open_state
+from service.physics.rail_store import RailStore, StateMismatchError
+from service.physics.worker import ProcessPhysics
 
 SITE = SiteConfig.model_validate({
     "site_id": "plastic", "length": 2.0, "output_sample_rate": 5000.0,

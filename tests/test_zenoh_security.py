@@ -30,10 +30,10 @@ import pytest
 import zenoh
 
 from schemas.messages import TrainFile, WheelPassage
-from service.feeder import Collector, declare_passage_publisher, query_health, wait_matching
-from service.keyspace import SiteKeys
-from service.service_process import ServiceProcess
-from service.zenoh_session import build_config
+from service.cli.service_process import ServiceProcess
+from service.clients.feeder import Collector, declare_passage_publisher, query_health, wait_matching
+from service.wire.keyspace import SiteKeys
+from service.wire.zenoh_session import build_config
 
 pytestmark = pytest.mark.skipif(shutil.which("openssl") is None,
                                 reason="openssl is not installed: no certificates can be made")

@@ -22,8 +22,8 @@ import numpy as np
 from schemas.diagnosis import MeasuredPassage
 from schemas.messages import WheelPassage
 from schemas.site import SiteConfig
-from service.diagnosis import Diagnoser
-from service.synthesize import measure
+from service.clients.synthesize import measure
+from service.physics.diagnosis import Diagnoser
 from sim_core.diagnosis.forward import Flat, damping_for_ratio
 from sim_core.diagnosis.synthetic import Perturbations, synthetic_measurement
 from sim_core.passage import Foundation

@@ -21,8 +21,8 @@ import numpy as np
 from schemas.diagnosis import MeasuredPassage
 from schemas.messages import WheelPassage
 from schemas.site import SiteConfig
-from service.diagnosis import Diagnoser
-from service.site import load_site
+from service.physics.diagnosis import Diagnoser
+from service.wire.site import load_site
 
 WIDE_DIR = Path(__file__).resolve().parent / "measured-wide"
 

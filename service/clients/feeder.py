@@ -1,6 +1,6 @@
 """Stream a train's wheel passages to a running twin and collect what comes back.
 
-    python -m service.feeder --train recordings/samples/train_160kmh.json \\
+    python -m service.clients.feeder --train recordings/samples/train_160kmh.json \\
         --site demo --connect tcp/127.0.0.1:7447
 
 Used by ``make demo`` (one line per wheel: peak force, contact losses, dent)
@@ -23,9 +23,9 @@ from pathlib import Path
 import zenoh
 
 from schemas.messages import Health, PassageResult, ServiceError, TrainFile, WheelPassage
-from service.keyspace import HEALTH_KEY, SiteKeys
-from service.twin import json_encoding
-from service.zenoh_session import DEFAULT_ENDPOINT, build_config, open_session
+from service.twin.twin import json_encoding
+from service.wire.keyspace import HEALTH_KEY, SiteKeys
+from service.wire.zenoh_session import DEFAULT_ENDPOINT, build_config, open_session
 
 
 def load_train(path: Path) -> TrainFile:

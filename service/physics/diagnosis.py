@@ -19,8 +19,8 @@ from numpy.typing import NDArray
 from schemas.diagnosis import Diagnosis, FlatFinding, MeasuredPassage
 from schemas.messages import WheelPassage
 from schemas.site import SiteConfig
-from service.measurement_error import MeasurementError
-from service.site_physics import SitePhysics
+from service.physics.measurement_error import MeasurementError
+from service.physics.site_physics import SitePhysics
 from sim_core.diagnosis.estimate import FlatEstimate, estimate_flat, make_flat
 from sim_core.diagnosis.forward import (
     Flat,

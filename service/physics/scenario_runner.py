@@ -21,7 +21,7 @@ import numpy as np
 
 from schemas import result as res
 from schemas import scenario as sc
-from service import physics_inputs
+from service.physics import inputs as physics_inputs
 
 Progress = Callable[[int, int], None]
 """progress(done, total): called with the number of passes completed so far."""

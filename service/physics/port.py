@@ -1,7 +1,7 @@
 """What the twin needs of a physics model of the site (injected, so the twin is testable).
 
-``SitePhysics`` (``service.site_physics``) is the real one, on ``sim_core``;
-``StubPhysics`` (``service.stub_physics``) is an instant closed-form stand-in
+``SitePhysics`` (``service.physics.site_physics``) is the real one, on ``sim_core``;
+``StubPhysics`` (``service.physics.stub``) is an instant closed-form stand-in
 for plumbing tests and for measuring the service's own overhead.
 """
 

@@ -20,7 +20,7 @@ publishes only to the two input keys of one site, ``railtwin/<site>/passage`` an
   (the log's rejected inputs, or a crafted "valid" one) is sent only with
   ``include_rejected``. A rejected input that was logged cut (too large, only its
   head kept) is never sent.
-- **Cut logs.** Logs are read with ``service.mcap_recover.salvage``, so a log whose
+- **Cut logs.** Logs are read with ``service.recording.mcap_recover.salvage``, so a log whose
   writer was killed (no footer) replays up to its last complete chunk.
 
     >>> plan = plan_replay([], site_id="km12")
@@ -45,11 +45,11 @@ from pydantic import BaseModel, ValidationError
 
 from schemas.diagnosis import MeasuredPassage
 from schemas.messages import RejectedInput, WheelPassage, encoding_schema
-from service import limits
-from service.feeder import wait_matching
-from service.keyspace import SiteKeys
-from service.mcap_log import LoggedMessage
-from service.mcap_recover import RecoveryReport, salvage
+from service.clients.feeder import wait_matching
+from service.recording.mcap_log import LoggedMessage
+from service.recording.mcap_recover import RecoveryReport, salvage
+from service.wire import limits
+from service.wire.keyspace import SiteKeys
 
 InputKind = Literal["passage", "measured"]
 

@@ -1,6 +1,6 @@
 """What the twin needs of a recorder: ``RecorderFront``.
 
-The one implementation is ``service.recorder_process.ProcessRecorder``: a child
+The one implementation is ``service.recording.recorder_process.ProcessRecorder``: a child
 process writes the MCAP log and the Rerun recording from a queue bounded in bytes,
 in the order the twin hands it messages (an earlier thread-based recorder competed
 with the simulation for the GIL, and its queue was unbounded).

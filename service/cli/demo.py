@@ -1,6 +1,6 @@
 """``make demo``: the twin on loopback, a sample train streamed to it, where the files are.
 
-    .venv/bin/python -m service.demo [--site examples/site.toml]
+    .venv/bin/python -m service.cli.demo [--site examples/site.toml]
         [--train recordings/samples/train_160kmh.json] [--recordings recordings]
 
 Starts ``railtwin serve`` in a child process on a free loopback port, streams
@@ -21,9 +21,9 @@ import sys
 import tempfile
 from pathlib import Path
 
-from service.service_process import ServiceProcess
-from service.site import load_site
-from service.zenoh_session import free_tcp_endpoint
+from service.cli.service_process import ServiceProcess
+from service.wire.site import load_site
+from service.wire.zenoh_session import free_tcp_endpoint
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -44,7 +44,7 @@ def main(argv: list[str] | None = None) -> int:
     ) as svc:
         saved = args.recordings / "demo-measured.json"
         args.recordings.mkdir(parents=True, exist_ok=True)
-        measured_cmd = [sys.executable, "-m", "service.measured_feeder", "--train",
+        measured_cmd = [sys.executable, "-m", "service.clients.measured_feeder", "--train",
                         str(args.train), "--site-file", str(args.site)]
         print("demo: the site's measured force of four wheels, made by the generator "
               "(each wheel's own outline, unknown roughness and damping, sensor noise)",
@@ -57,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
              "--timeout", "120"], cwd=ROOT,
         )
         feeder = subprocess.run(
-            [sys.executable, "-m", "service.feeder", "--train", str(args.train),
+            [sys.executable, "-m", "service.clients.feeder", "--train", str(args.train),
              "--site", site.site_id, "--connect", endpoint, "--timeout", "300"],
             cwd=ROOT, check=False,
         )

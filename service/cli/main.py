@@ -8,8 +8,8 @@
 Subcommands are plug-ins: a module exposes ``register(subparsers)`` that adds
 its parser and sets ``func`` (``handler(args) -> exit code``) with
 ``set_defaults``. The built-in commands are registered below; the optional
-modules in ``OPTIONAL_COMMAND_MODULES`` (``service.serve_cli``,
-``service.replay_cli``) are registered when they exist; one that fails to import
+modules in ``OPTIONAL_COMMAND_MODULES`` (``service.cli.serve``,
+``service.cli.replay``) are registered when they exist; one that fails to import
 (e.g. a missing optional dependency) is skipped with a warning on stderr, so
 that ``simulate`` keeps working. ``register`` must stay cheap: import
 heavy libraries (zenoh, rerun, matplotlib) inside the handler, not at module
@@ -45,7 +45,7 @@ exit status:
 """
 
 OPTIONAL_COMMAND_MODULES: tuple[str, ...] = (
-    "service.serve_cli", "service.replay_cli", "service.diagnose_cli", "service.recover_cli",
+    "service.cli.serve", "service.cli.replay", "service.cli.diagnose", "service.cli.recover",
 )
 """Modules that add subcommands when present (each defines ``register(subparsers)``)."""
 
@@ -169,7 +169,7 @@ def _load_scenario(path: str, source: str) -> Any:
 def _run(scenario: Any, source: str, args: argparse.Namespace) -> Any:
     """``run_scenario`` with pass progress on stderr; CommandError (exit 1) if it fails."""
     from schemas.errors import ErrorReport
-    from service.scenario_runner import run_scenario
+    from service.physics.scenario_runner import run_scenario
 
     progress = None
     if scenario.passes > 1 and not args.quiet:
@@ -239,7 +239,7 @@ def _simulate_batch(args: argparse.Namespace) -> int:
             scenario = _load_scenario(path, path)
             if not warmed:
                 warmed = True
-                from service.scenario_runner import warm_up
+                from service.physics.scenario_runner import warm_up
 
                 seconds = warm_up()
                 _note(args, f"compiled physics loaded in {seconds:.2f} s")
@@ -489,11 +489,11 @@ def cmd_figures(args: argparse.Namespace) -> int:
             "matplotlib is not installed: pip install -e '.[figures]' (or make figures)"
         ) from None
     try:
-        module = importlib.import_module("service.figures")
+        module = importlib.import_module("service.cli.figures")
     except ModuleNotFoundError as exc:
-        if exc.name != "service.figures":
+        if exc.name != "service.cli.figures":
             raise
-        raise CommandError("service/figures.py is not there yet: no figures to draw") from None
+        raise CommandError("service/cli/figures.py is not there yet: no figures to draw") from None
     out = Path(args.out)
     try:
         out.mkdir(parents=True, exist_ok=True)

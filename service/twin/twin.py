@@ -20,7 +20,7 @@ Diagnosis (with the site's own physics, ``SitePhysics``): measured passages come
 ``railtwin/<site>/measured`` (``MeasuredPassage``) through the same queue and worker.
 The worker pairs each with the ``WheelPassage`` of the same ``passage_id``, in either
 order of arrival (the last 10 000 valid passages are kept; at most 1 000 measurements
-wait), diagnoses it (``service.diagnosis.Diagnoser``) and publishes the ``Diagnosis``
+wait), diagnoses it (``service.physics.diagnosis.Diagnoser``) and publishes the ``Diagnosis``
 on ``railtwin/<site>/diagnosis/<passage>``. A measurement whose passage has not come
 within the site's ``diagnosis.pairing_timeout`` gets an ``unpaired`` ServiceError; a
 bad or duplicate one an ``invalid_measurement`` one (``invalid_json`` if not JSON).
@@ -59,12 +59,8 @@ from schemas.messages import (
     encoding_schema,
 )
 from schemas.site import SiteConfig
-from service import limits
-from service.input_journal import InputJournal
-from service.kept_passages import KeptPassages
-from service.keyspace import HEALTH_KEY, SiteKeys
-from service.physics import PassageSimulator
-from service.physics_worker import (
+from service.physics.port import PassageSimulator
+from service.physics.worker import (
     BudgetExceededError,
     DiagnosisOutcome,
     MeasurementError,
@@ -73,7 +69,11 @@ from service.physics_worker import (
     diagnose_locally,
     series_json,
 )
-from service.recorder import RecorderFront
+from service.recording.input_journal import InputJournal
+from service.recording.recorder import RecorderFront
+from service.twin.kept_passages import KeptPassages
+from service.wire import limits
+from service.wire.keyspace import HEALTH_KEY, SiteKeys
 
 DiagnoseFn = Callable[[WheelPassage, MeasuredPassage], DiagnosisOutcome]
 
@@ -209,11 +209,11 @@ class Twin:
         self.measured_received = 0
         self.diagnoses_done = 0
         self.diagnoser: DiagnoseFn | None = None
-        site_physics = sys.modules.get("service.site_physics")  # loaded if physics is one
+        site_physics = sys.modules.get("service.physics.site_physics")  # loaded if physics is one
         if getattr(physics, "diagnoses", False):  # a ProcessPhysics: diagnosed in its worker
             self.diagnoser = physics.diagnose  # type: ignore[attr-defined]
         elif site_physics is not None and isinstance(physics, site_physics.SitePhysics):
-            from service.diagnosis import Diagnoser
+            from service.physics.diagnosis import Diagnoser
 
             local = Diagnoser(site, physics=physics)
             self.diagnoser = lambda p, m: diagnose_locally(local, p, m)

@@ -21,7 +21,7 @@ C_HERTZ = 1.0805e11
 
 
 class StubPhysics:
-    """Implements ``service.physics.PassageSimulator``."""
+    """Implements ``service.physics.port.PassageSimulator``."""
 
     def __init__(self, site: SiteConfig) -> None:
         self.site = site

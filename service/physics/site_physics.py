@@ -24,7 +24,7 @@ from schemas.messages import PassageResult, RailState, WheelPassage
 from schemas.result import Summary, Transition
 from schemas.scenario import FlatOutline
 from schemas.site import SiteConfig
-from service import physics_inputs
+from service.physics import inputs as physics_inputs
 from sim_core.constraint import warm_up_constraint
 from sim_core.constraint.table import ConstraintTable
 from sim_core.contact_laws import ContactModel
@@ -44,7 +44,7 @@ def wheel_outline(p: WheelPassage) -> WheelOutline:
 
 
 class SitePhysics:
-    """Implements ``service.physics.PassageSimulator`` with ``sim_core``."""
+    """Implements ``service.physics.port.PassageSimulator`` with ``sim_core``."""
 
     def __init__(self, site: SiteConfig) -> None:
         self.site = site

@@ -9,7 +9,7 @@ with ``mcap.stream_reader.StreamReader`` and stops at the first damaged record, 
     >>> import io, tempfile
     >>> from pathlib import Path
     >>> from schemas.messages import RejectedInput
-    >>> from service.mcap_log import McapLog
+    >>> from service.recording.mcap_log import McapLog
     >>> d = Path(tempfile.mkdtemp())
     >>> log = McapLog(d, "cut", chunk_size=64)
     >>> for i in range(20):
@@ -45,8 +45,8 @@ from schemas.messages import (
     WheelPassage,
     encoding_schema,
 )
-from service.input_journal import read_journal
-from service.mcap_log import LoggedMessage
+from service.recording.input_journal import read_journal
+from service.recording.mcap_log import LoggedMessage
 
 __all__ = ["RecoveryReport", "read_any", "recover", "salvage"]
 
@@ -132,7 +132,7 @@ def journal_messages(path: Path) -> Iterator[LoggedMessage]:
 def recover(paths: list[Path], out: Path) -> RecoveryReport:
     """Write every salvageable message of ``paths`` (in log-time order) to a complete ``out``.
 
-    ``.journal`` files (``service.input_journal``) add the inputs, results, diagnoses and
+    ``.journal`` files (``service.recording.input_journal``) add the inputs, results, diagnoses and
     errors the MCAP files lack.
     """
     report = RecoveryReport()

@@ -43,7 +43,7 @@ def rail_profile(rail: object) -> RailProfile:
     """The contract's rail as a ``RailProfile``.
 
     A site's ``file`` rail must have been read into a sampled rail first
-    (``service.site``); anything else that is not a known rail kind is refused.
+    (``service.wire.site``); anything else that is not a known rail kind is refused.
     """
     if isinstance(rail, sc.FlatRail):
         return RailProfile.flat()
@@ -55,7 +55,7 @@ def rail_profile(rail: object) -> RailProfile:
         return RailProfile.sampled(np.asarray(rail.x, float), np.asarray(rail.y, float))
     kind = getattr(rail, "kind", type(rail).__name__)
     raise ValueError(f"rail kind {kind!r} must be resolved to a sampled rail before simulation "
-                     "(service.site reads rail files)")
+                     "(service.wire.site reads rail files)")
 
 
 def wheel_outline(outline: sc.Outline, radius: float) -> WheelOutline:

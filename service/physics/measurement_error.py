@@ -1,6 +1,6 @@
 """The error of a measurement that cannot be diagnosed (light: no physics imported).
 
-Raised by ``service.diagnosis`` in the physics worker, sent across to the twin, which
+Raised by ``service.physics.diagnosis`` in the physics worker, sent across to the twin, which
 answers it with an ``invalid_measurement`` ServiceError naming ``field``.
 """
 

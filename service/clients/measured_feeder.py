@@ -1,16 +1,16 @@
 """Publish measured forces for some wheels of a train and print the twin's diagnoses.
 
-    python -m service.measured_feeder --train recordings/samples/train_160kmh.json \\
+    python -m service.clients.measured_feeder --train recordings/samples/train_160kmh.json \\
         --site-file examples/site.toml --connect tcp/127.0.0.1:7447 [--axles 0 5 13 20]
         [--save M.json | --load M.json] [--with-train]
 
-The measurements are made by the generator (``service.synthesize``: each wheel's own
+The measurements are made by the generator (``service.clients.synthesize``: each wheel's own
 outline, unknown roughness, foundation damping, sensor chain and noise); the wheels'
-passages must already have been sent (``service.feeder``), or come later: the twin pairs
+passages must already have been sent (``service.clients.feeder``), or come later: the twin pairs
 them by passage id. One line per diagnosis, with the time from publishing the
 measurement to receiving its verdict. ``--save`` only generates (no Zenoh), ``--load``
 publishes saved ones; ``--with-train`` publishes each measurement when its wheel leaves
-the site, timed from the start like ``service.feeder`` times the train (run both
+the site, timed from the start like ``service.clients.feeder`` times the train (run both
 together: the diagnoses are then made while the train streams, as at a real site).
 """
 
@@ -27,13 +27,13 @@ import zenoh
 
 from schemas.diagnosis import Diagnosis, MeasuredPassage
 from schemas.messages import ServiceError
-from service.diagnosis import Diagnoser
-from service.feeder import load_train, wait_matching
-from service.keyspace import SiteKeys
-from service.site import load_site
-from service.synthesize import measure, passage_tread
-from service.twin import json_encoding
-from service.zenoh_session import DEFAULT_ENDPOINT, build_config, open_session
+from service.clients.feeder import load_train, wait_matching
+from service.clients.synthesize import measure, passage_tread
+from service.physics.diagnosis import Diagnoser
+from service.twin.twin import json_encoding
+from service.wire.keyspace import SiteKeys
+from service.wire.site import load_site
+from service.wire.zenoh_session import DEFAULT_ENDPOINT, build_config, open_session
 
 DEFAULT_AXLES = (0, 5, 13, 20)
 
@@ -50,7 +50,7 @@ def describe(d: Diagnosis, latency: float) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m service.measured_feeder",
+    p = argparse.ArgumentParser(prog="python -m service.clients.measured_feeder",
                                 description=__doc__.split("\n")[0])
     p.add_argument("--train", type=Path, default=Path("recordings/samples/train_160kmh.json"))
     p.add_argument("--site-file", type=Path, default=Path("examples/site.toml"))

@@ -17,7 +17,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from service.cli import EXIT_CODES_HELP, EXIT_FAILURE, EXIT_OK, EXIT_USAGE, CommandError
+from service.cli.main import EXIT_CODES_HELP, EXIT_FAILURE, EXIT_OK, EXIT_USAGE, CommandError
 
 
 def register(subparsers: Any) -> None:
@@ -69,10 +69,10 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     from pydantic import ValidationError
 
     from schemas.messages import WheelPassage
-    from service.cli import _read_json, _write_atomic
-    from service.diagnosis import Diagnoser, MeasurementError
-    from service.measured_io import MeasuredFileError, read_measured
-    from service.site import SiteFileError, load_site
+    from service.cli.main import _read_json, _write_atomic
+    from service.clients.measured_io import MeasuredFileError, read_measured
+    from service.physics.diagnosis import Diagnoser, MeasurementError
+    from service.wire.site import SiteFileError, load_site
 
     try:
         site = load_site(args.site)

@@ -6,9 +6,9 @@
 Publishes only to ``railtwin/<site>/passage`` and ``railtwin/<site>/measured`` of the
 site given by ``--site`` (or of the log's site, when the log holds exactly one), and
 only payloads that are valid against their model unless ``--include-rejected``; see
-``service.replay``. Reads cut logs (a killed twin's) too.
+``service.clients.replay``. Reads cut logs (a killed twin's) too.
 
-Also runnable as ``python -m service.replay_cli ...``.
+Also runnable as ``python -m service.cli.replay ...``.
 """
 
 from __future__ import annotations
@@ -18,9 +18,9 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from service.mcap_recover import RecoveryReport
-from service.replay import ReplayError, ReplayPlan, plan_replay, read_logs, replay
-from service.zenoh_session import DEFAULT_ENDPOINT, build_config, open_session
+from service.clients.replay import ReplayError, ReplayPlan, plan_replay, read_logs, replay
+from service.recording.mcap_recover import RecoveryReport
+from service.wire.zenoh_session import DEFAULT_ENDPOINT, build_config, open_session
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:

@@ -34,9 +34,9 @@ from typing import TYPE_CHECKING, Any, Literal
 from schemas.diagnosis import Diagnosis, MeasuredPassage
 from schemas.messages import PassageResult, PassageSeries, RailState, WheelPassage
 from schemas.site import SiteConfig
-from service.measurement_error import MeasurementError
-from service.parent_watch import exit_when_orphaned
-from service.rail_store import RailStore
+from service.physics.measurement_error import MeasurementError
+from service.physics.parent_watch import exit_when_orphaned
+from service.physics.rail_store import RailStore
 from sim_core.rail import RailProfile
 
 if TYPE_CHECKING:
@@ -94,17 +94,17 @@ def series_json(r: PassageResult, quantity: Literal["force", "indentation"], fir
 def make_physics(kind: str, site: SiteConfig) -> Any:
     """The physics ``kind`` (``sim_core`` or ``stub``) of ``site``, in this process."""
     if kind == "stub":
-        from service.stub_physics import StubPhysics
+        from service.physics.stub import StubPhysics
 
         return StubPhysics(site)
-    from service.site_physics import SitePhysics
+    from service.physics.site_physics import SitePhysics
 
     return SitePhysics(site)
 
 
 def diagnose_locally(diagnoser: Any, passage: WheelPassage,
                      measured: MeasuredPassage) -> DiagnosisOutcome:
-    """Run ``service.diagnosis.Diagnoser.diagnose`` and keep what the twin needs (a
+    """Run ``service.physics.diagnosis.Diagnoser.diagnose`` and keep what the twin needs (a
     ``MeasurementError`` goes to the twin as it is)."""
     diag, curves = diagnoser.diagnose(passage, measured)
     impacts_x = curves.impacts_t * curves.estimate.speed
@@ -138,7 +138,7 @@ def _child_main(site: SiteConfig, kind: str, conn: Connection, snapshot: Any,
                 if warm_up is not None and msg[1]:
                     warm_up()
                 if kind == "sim_core" and msg[1]:  # ready before the first measurement
-                    from service.diagnosis import Diagnoser
+                    from service.physics.diagnosis import Diagnoser
 
                     diagnoser = Diagnoser(site, physics=physics)
                     diagnoser.warm_up()
@@ -158,7 +158,7 @@ def _child_main(site: SiteConfig, kind: str, conn: Connection, snapshot: Any,
                 conn.send(("ok", result, data, dented, series))
             elif op == "diagnose":
                 if diagnoser is None:
-                    from service.diagnosis import Diagnoser
+                    from service.physics.diagnosis import Diagnoser
 
                     diagnoser = Diagnoser(site, physics=physics)
                 conn.send(("ok", diagnose_locally(diagnoser, msg[1], msg[2])))
@@ -179,7 +179,7 @@ def _child_main(site: SiteConfig, kind: str, conn: Connection, snapshot: Any,
 
 
 class ProcessPhysics:
-    """``service.physics.PassageSimulator`` (and diagnosis) in a worker process.
+    """``service.physics.port.PassageSimulator`` (and diagnosis) in a worker process.
 
     One call at a time; ``rail_state`` never waits for the worker.
     """

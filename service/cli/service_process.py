@@ -39,7 +39,7 @@ class ServiceProcess:
         echo: bool = False,
     ) -> None:
         self.args = [
-            sys.executable, "-m", "service.serve_cli", "--site", str(site), "--listen", listen,
+            sys.executable, "-m", "service.cli.serve", "--site", str(site), "--listen", listen,
             "--recordings", str(recordings), *extra_args,
         ]
         self.start_timeout = start_timeout

@@ -36,7 +36,7 @@ from mcap.writer import CompressionType, Writer
 from pydantic import BaseModel
 
 from schemas.messages import MESSAGE_MODELS, encoding_schema
-from service.retention import enforce_retention
+from service.recording.retention import enforce_retention
 
 DEFAULT_MAX_BYTES = 512 * 1024 * 1024
 DEFAULT_MAX_SECONDS = 3600.0

@@ -3,7 +3,7 @@
     railtwin serve --site examples/site.toml [--listen E]... [--connect E]...
                    [--zenoh-config FILE] [--pace fast|realtime] [--recordings DIR]
 
-Also runnable as ``python -m service.serve_cli ...`` (what the tests do).
+Also runnable as ``python -m service.cli.serve ...`` (what the tests do).
 """
 
 from __future__ import annotations
@@ -23,16 +23,16 @@ from typing import Any
 
 import zenoh
 
-from service.input_journal import InputJournal
-from service.limits import DEFAULT_PASSAGE_BUDGET, site_problem
-from service.mcap_log import DEFAULT_MAX_BYTES, DEFAULT_MAX_SECONDS
-from service.physics import PassageSimulator
-from service.physics_worker import PhysicsPool
-from service.rail_store import RailStore, StateMismatchError
-from service.recorder_process import ProcessRecorder, RecordingPlan
-from service.site import SiteFileError, load_site
-from service.twin import Twin
-from service.zenoh_session import DEFAULT_ENDPOINT, build_config, open_session
+from service.physics.port import PassageSimulator
+from service.physics.rail_store import RailStore, StateMismatchError
+from service.physics.worker import PhysicsPool
+from service.recording.input_journal import InputJournal
+from service.recording.mcap_log import DEFAULT_MAX_BYTES, DEFAULT_MAX_SECONDS
+from service.recording.recorder_process import ProcessRecorder, RecordingPlan
+from service.twin.twin import Twin
+from service.wire.limits import DEFAULT_PASSAGE_BUDGET, site_problem
+from service.wire.site import SiteFileError, load_site
+from service.wire.zenoh_session import DEFAULT_ENDPOINT, build_config, open_session
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -98,10 +98,10 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
 
 def make_physics(kind: str, site: Any) -> PassageSimulator:
     if kind == "stub":
-        from service.stub_physics import StubPhysics
+        from service.physics.stub import StubPhysics
 
         return StubPhysics(site)
-    from service.site_physics import SitePhysics
+    from service.physics.site_physics import SitePhysics
 
     return SitePhysics(site)
 

@@ -1,6 +1,6 @@
 """A child process that leaves when the service that started it is gone.
 
-The physics worker (``service.physics_worker``) spends its first minutes compiling
+The physics worker (``service.physics.worker``) spends its first minutes compiling
 the physics (numba, no cache yet) and later runs passages that hold the GIL; in
 neither does it read its pipe, so a service killed with SIGKILL (or by the
 out-of-memory killer) used to leave it behind, compiling, until it next read. A

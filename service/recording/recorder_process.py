@@ -5,7 +5,7 @@ Writing the log and the recording costs about 2 ms of Python a passage
 with the simulation for the GIL and cut the service's throughput by a third.
 Here the twin only queues bytes it already has (the JSON of every message)
 and a child process, on the other core, writes the files: same front as
-``service.recorder.Recorder`` (``message``, ``passage``, ``dent``, ``rail``,
+``service.recording.recorder.Recorder`` (``message``, ``passage``, ``dent``, ``rail``,
 ``diagnosis``, ``close``), same order, same files.
 
 The queue is bounded in bytes, so a flood cannot grow the service's memory
@@ -56,7 +56,7 @@ class RecordingPlan:
     mcap_max_seconds: float = 3600.0
     flush_interval: float = 0.5
     keep_bytes: int | None = None
-    """Retention limit of the recordings directory (``service.retention``); None: keep all."""
+    """Retention limit of the recordings directory (``service.recording.retention``); None: keep all."""
     metadata: tuple[tuple[str, str], ...] = ()
     """Written as a ``railtwin`` metadata record at the start of every MCAP file."""
     rerun_backlog_bytes: int = 64 * 2**20
@@ -64,7 +64,7 @@ class RecordingPlan:
     mcap_backlog_bytes: int = 256 * 2**20
     """Beyond this many bytes waiting, a message for the MCAP log waits for room."""
     rrd_part_passages: int = 5000
-    """Passages and diagnoses per ``.rrd`` part (``service.rerun_recording``)."""
+    """Passages and diagnoses per ``.rrd`` part (``service.recording.rerun_recording``)."""
     mcap_wait_timeout: float = 60.0
     """A message that found no room within this many seconds is dropped (and counted)."""
 
@@ -228,8 +228,8 @@ def _child_main(plan: RecordingPlan, inbox: Any, status: Any, parent_pid: int,
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, signal.SIG_IGN)
     from schemas import all_models
-    from service.mcap_log import McapLog
-    from service.rerun_recording import RerunRecording
+    from service.recording.mcap_log import McapLog
+    from service.recording.rerun_recording import RerunRecording
 
     models = all_models()
     mcap = (

@@ -73,7 +73,7 @@ def read_measured_csv(path: Path, passage_id: str, speed: float | None = None) -
 
 def read_measured_mcap(path: Path, passage_id: str) -> MeasuredPassage:
     """The ``MeasuredPassage`` of ``passage_id`` logged in a railtwin MCAP file."""
-    from service.mcap_log import read_log
+    from service.recording.mcap_log import read_log
 
     found: MeasuredPassage | None = None
     try:

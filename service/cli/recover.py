@@ -18,7 +18,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from service.cli import EXIT_CODES_HELP, EXIT_FAILURE, EXIT_OK, EXIT_USAGE, CommandError
+from service.cli.main import EXIT_CODES_HELP, EXIT_FAILURE, EXIT_OK, EXIT_USAGE, CommandError
 
 
 def register(subparsers: Any) -> None:
@@ -33,7 +33,7 @@ def register(subparsers: Any) -> None:
 
 
 def cmd_recover(args: argparse.Namespace) -> int:
-    from service.mcap_recover import recover
+    from service.recording.mcap_recover import recover
 
     for p in args.logs:
         if not p.is_file():

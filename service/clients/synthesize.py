@@ -1,6 +1,6 @@
-"""Synthetic measured passages for a site: ``python -m service.synthesize``.
+"""Synthetic measured passages for a site: ``python -m service.clients.synthesize``.
 
-    python -m service.synthesize --site examples/site.toml --passage P.json
+    python -m service.clients.synthesize --site examples/site.toml --passage P.json
         [--flat flat|rounded_flat --length 0.05 --phase 1.0] [--seed 1]
         [--noise 0.03] [--roughness 3e-6] [--damping-ratio 0.15] [--speed-error 0.01]
         --out MEASURED.csv
@@ -20,9 +20,9 @@ import numpy as np
 
 from schemas.messages import WheelPassage
 from schemas.site import SiteConfig
-from service.diagnosis import Diagnoser
-from service.site import load_site
-from service.site_physics import wheel_outline
+from service.physics.diagnosis import Diagnoser
+from service.physics.site_physics import wheel_outline
+from service.wire.site import load_site
 from sim_core.diagnosis.forward import Flat, MeasuredTread, Tread, damping_for_ratio
 from sim_core.diagnosis.synthetic import Perturbations, SyntheticMeasurement, synthetic_measurement
 
@@ -52,7 +52,7 @@ def passage_tread(passage: WheelPassage) -> Tread | None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m service.synthesize", description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(prog="python -m service.clients.synthesize", description=__doc__.split("\n")[0])
     p.add_argument("--site", type=Path, required=True)
     p.add_argument("--passage", type=Path, required=True)
     p.add_argument("--flat", choices=("flat", "rounded_flat"), default=None,
