@@ -141,9 +141,14 @@ class Diagnoser:
         wheel = self.wheel(passage)
         t = measured.t_start + np.arange(measured.samples) / measured.sample_rate
         f = np.asarray(measured.force, dtype=np.float64)
-        est = estimate_flat(wheel, speed, t, f, self.sensor)
+        # a round wheel on the site's own rail, as measured: what the screen compares with
+        baseline = self._measure(wheel, speed, None, float(t[0]), float(t[-1]), t)
+        est = estimate_flat(wheel, speed, t, f, self.sensor, baseline=baseline)
         fit_wheel = with_damping_ratio(wheel, est.damping_ratio)
-        fitted = self._measure(fit_wheel, est.speed, est.flat, float(t[0]), float(t[-1]), t)
+        if est.screened:
+            fitted = baseline
+        else:
+            fitted = self._measure(fit_wheel, est.speed, est.flat, float(t[0]), float(t[-1]), t)
         cfg = self.site.diagnosis
         flat = est.flat
         noise = est.noise_level

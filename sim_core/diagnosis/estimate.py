@@ -586,8 +586,9 @@ def _dismissed(
     zeta_max: float,
     options: FitOptions,
 ) -> bool:
-    """A round wheel dismissed without a fit: the record's largest deviation from the static
-    load (less ``SCREEN_NOISE_SIGMAS`` noise σ) is below the smallest deviation the shortest
+    """A round wheel dismissed without a fit: the record's largest deviation from a round
+    wheel's (``f`` comes here as record - round wheel on the site's rail + P), less
+    ``SCREEN_NOISE_SIGMAS`` noise σ, is below the smallest deviation the shortest
     flat the fit would report makes, by both kinds (its template at the detection floor, the
     most damped foundation searched, through the site's chain). A flat below the floor is
     then dismissed too: the fit reports one only when it stands out of its record."""
@@ -630,10 +631,13 @@ def estimate_flat(
     force: NDArray[np.float64],
     sensor: SensorModel,
     options: FitOptions = DEFAULT_OPTIONS,
+    baseline: NDArray[np.float64] | None = None,
 ) -> FlatEstimate:
     """Fit a flat to the measured ``force`` at times ``t`` (s; t = 0 at the site's start).
 
     ``speed`` is the best speed known (measured or reported); the turn spacing refines it.
+    ``baseline``: a round wheel's force on the site's own rail as the site would measure it
+    at ``t`` (the screen compares the record with it; default: the static load).
     """
     start = time.perf_counter()
     t = np.asarray(t, dtype=np.float64)
@@ -657,8 +661,13 @@ def estimate_flat(
             zetas = (round(zeta_site / b, 6), round(zeta_site, 6), round(zeta_site * b, 6))
         else:
             zetas = tuple(sorted({round(zeta_site, 6), *options.damping_ratios}))
-    if options.screen and _dismissed(wheel, speed, sensor, rate, f, noise, zetas[-1], options):
-        cost = float(np.sum((_clip(f, P) - P) ** 2))
+    if baseline is not None and baseline.shape != f.shape:
+        raise ValueError("diagnosis: baseline must have one value per measured sample")
+    base = baseline if baseline is not None else np.full_like(f, P)
+    if options.screen and _dismissed(
+        wheel, speed, sensor, rate, f - base + P, noise, zetas[-1], options
+    ):
+        cost = float(np.sum((_clip(f, P) - _clip(base, P)) ** 2))
         return FlatEstimate(
             None, None, 0.0, 0.0, 0.0, cost, cost, int(f.size), 0.0, 0.0, speed, zetas[-1],
             (), (), time.perf_counter() - start, noise_level=noise, screened=True,
