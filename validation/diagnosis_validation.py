@@ -125,8 +125,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=20261201, help="the own generator's seed")
     p.add_argument("--out", type=Path, default=Path("validation/diagnosis_results.json"))
     a = p.parse_args(argv)
+    # compile the kernels first (a cold numba cache takes minutes): the timings are the fits'
+    from service.physics.diagnosis import Diagnoser
     from validation import own_generator, wide_set
 
+    Diagnoser(wide_set.load_case(wide_set.case_ids()[0]).site).warm_up()
     start = time.perf_counter()
     wide = wide_set.run_all(wide_set.case_ids())
     own = own_generator.run_all(a.own, a.seed) if a.own > 0 else []
