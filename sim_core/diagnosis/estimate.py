@@ -29,6 +29,14 @@ stands out of its own record: its *contrast*, the significance over the largest
 significance of the same flat fitted a fraction of a turn away (``NULL_OFFSETS``), is at
 least ``contrast`` (round wheels of the tuning set reached 7.7).
 
+Before any of this, a *screen* dismisses a round wheel in milliseconds: if the record stays
+closer to a round wheel's (``baseline``) than the shortest reportable flat's template would
+take it, no fit is made. A worn flat's depth is fitted within 0.7-1.3 × l²/16R after its
+length (``_refine_depth``), and the record's own noise σ is estimated from its third
+differences (``record_noise``) so that the service can say whether the fit explains the
+record. A damper stated in the site file is trusted within ``site_damping_band``.
+docs/diagnosis.md has the method, the validation on independent data and the misses.
+
 Worked example (tests/test_diagnosis.py runs it on noisy synthetic records):
 a 50 mm fresh flat at 100 km/h is found as a ``flat`` of 50 ± 2 mm.
 """
