@@ -510,8 +510,25 @@ def cmd_figures(args: argparse.Namespace) -> int:
 BUILTIN_COMMANDS = (register_simulate, register_schema, register_figures)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The full parser: built-in commands and those of the optional modules present."""
+def _requested_command(argv: Sequence[str] | None) -> str | None:
+    """The subcommand named on the command line (the first argument not an option)."""
+    args = sys.argv[1:] if argv is None else list(argv)
+    for a in args:
+        if a == "--":
+            return None
+        if not a.startswith("-"):
+            return a
+    return None
+
+
+def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
+    """The parser: built-in commands and those of the optional modules present.
+
+    When ``argv`` names a subcommand of one of the optional modules (a module
+    ``service.cli.NAME`` registers the subcommand NAME), only that module is imported:
+    ``railtwin diagnose`` does not pay for the service's imports (zenoh, MCAP, Rerun).
+    Any other command line (help, a built-in command, a typo) gets them all.
+    """
     from importlib.metadata import PackageNotFoundError, version
 
     try:
@@ -536,7 +553,9 @@ def build_parser() -> argparse.ArgumentParser:
     subparsers.required = True
     for register in BUILTIN_COMMANDS:
         register(subparsers)
-    for name in OPTIONAL_COMMAND_MODULES:
+    wanted = _requested_command(argv)
+    modules = [m for m in OPTIONAL_COMMAND_MODULES if m.rsplit(".", 1)[-1] == wanted]
+    for name in modules or OPTIONAL_COMMAND_MODULES:
         try:
             module = importlib.import_module(name)
         except ModuleNotFoundError as exc:
@@ -555,7 +574,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``railtwin`` script; returns the exit status."""
-    parser = build_parser()
+    parser = build_parser(argv)
     args = parser.parse_args(argv)
     args.debug = getattr(args, "debug", False)
     try:
