@@ -101,7 +101,14 @@ SHIFT_STEP = 5e-5
 
 @dataclass(frozen=True)
 class FitOptions:
-    """Knobs of the search, with the values the validation was run with."""
+    """Knobs of the search, with the values the validation was run with.
+
+    ``max_earlier_turns``, ``ringing`` (``remove_ringing``), ``clean_arrivals``
+    (``_clean_arrivals``) and ``first_impact_lead`` (``turns.first_impact_lead``) are ways
+    of giving the template the state a lightly damped wheel arrives with; each was measured
+    on both validation sources and none improved both (docs/diagnosis.md, "Tried and not
+    kept"), so all are off.
+    """
 
     lengths: tuple[float, ...] = LENGTH_GRID
     kinds: tuple[FlatKind, ...] = ("flat", "rounded_flat")
@@ -120,6 +127,9 @@ class FitOptions:
     site_damping_band: float = 2.0
     max_earlier_turns: int = 0
     screen: bool = True
+    ringing: bool = False
+    clean_arrivals: bool = False
+    first_impact_lead: bool = False
 
 
 DEFAULT_OPTIONS = FitOptions()
@@ -193,6 +203,7 @@ class _Problem:
     turns: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     period_band: tuple[float, float] = (0.0, 0.0)
     max_earlier_turns: int = 0
+    lead: float = 0.0
 
     def template(self, flat: Flat, zeta: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(τ, filtered force): the flat's centre under the wheel at τ = 0 (kept)."""
@@ -239,7 +250,7 @@ class _Problem:
         half = 0.5 * length / self.speed
         windows = [(self.t[i0:i1], self.f[i0:i1]) for i0, i1 in self.win]
         centres, total = _align_periodic(
-            tau, tf, windows, self.anchors, self.turns, half, self.period_band
+            tau, tf, windows, self.anchors, self.turns, half, self.period_band, self.lead
         )
         cand = Candidate(kind, length, zeta, total, centres, depth_factor)
         self.evaluated[key] = cand
@@ -312,6 +323,7 @@ def _align_periodic(
     turns: NDArray[np.int64],
     half: float,
     band: tuple[float, float],
+    lead: float = 0.0,
 ) -> tuple[NDArray[np.float64], float]:
     """(flat-centre time per window, total cost) with the centres once per turn.
 
@@ -324,7 +336,9 @@ def _align_periodic(
     n = turns.astype(np.float64)
     n_max = max(float(n.max()), 1.0)
     s0_grid = np.arange(
-        anchors[0] - half - 0.012, anchors[0] + half + 0.002 + 0.5 * SHIFT_STEP, SHIFT_STEP
+        anchors[0] - half - 0.012 - lead,
+        anchors[0] + half + 0.002 + 0.5 * SHIFT_STEP,
+        SHIFT_STEP,
     )
     n_t = max(3, int(np.ceil((t_hi - t_lo) * n_max / SHIFT_STEP)) + 1)
     t_grid = np.linspace(t_lo, t_hi, n_t)
@@ -385,7 +399,9 @@ def _contrast(
             for a in anchors[ok]
         ]
         turns = prob.turns[ok] - prob.turns[ok][0]
-        _, cost = _align_periodic(tau, tf, win, anchors[ok], turns, half, prob.period_band)
+        _, cost = _align_periodic(
+            tau, tf, win, anchors[ok], turns, half, prob.period_band, prob.lead
+        )
         n = sum(w[0].size for w in win)
         load = prob.wheel.load
         c_round = float(sum(np.sum((w[1] - load) ** 2) for w in win))
@@ -522,22 +538,9 @@ def slowest_decay(wheel: WheelOnSite, zeta: float) -> float:
     ``zeta`` (the contact linearised at the static load); inf on a rigid foundation, whose
     only mode, the undamped contact spring, the model leaves ringing at the same flat
     through every turn (and so to the template's own pre-roll)."""
-    f = wheel.foundation
-    if not f.is_compliant:
+    if not wheel.foundation.is_compliant:
         return math.inf
-    m, M, k = wheel.mass, f.mass, f.stiffness
-    c = 2.0 * zeta * math.sqrt(k * M)
-    # Hertz: F = C δ^1.5, dF/dδ at P is 1.5 P / δ0 with δ0 = (P/C)^(2/3)
-    kc = 1.5 * wheel.load / (wheel.load / wheel.contact.coefficient) ** (2.0 / 3.0)
-    a = np.array(
-        [
-            [0.0, 1.0, 0.0, 0.0],
-            [-kc / m, 0.0, kc / m, 0.0],
-            [0.0, 0.0, 0.0, 1.0],
-            [kc / M, 0.0, -(kc + k) / M, -c / M],
-        ]
-    )
-    return float(np.min(-np.linalg.eigvals(a).real))
+    return float(np.min(-ringing_modes(wheel, zeta).real))
 
 
 def earlier_turns(wheel: WheelOnSite, zeta: float, period: float, max_turns: int) -> int:
@@ -550,6 +553,140 @@ def earlier_turns(wheel: WheelOnSite, zeta: float, period: float, max_turns: int
         return max_turns
     need = math.log(1.0 / RING_LEFT) / (sigma * period)  # turns for the ringing to die out
     return min(max_turns, max(0, math.ceil(need) - 1))
+
+
+RING_FIT = 0.04
+"""s of record before each window over which the arriving wheel's ringing is fitted (a few
+periods of the wheel-on-foundation mode, 60-130 Hz; well after the last turn's bounces)."""
+
+RING_CONTACT = 0.2
+"""The ringing is fitted only where the record stays within [0.2, 1.8]·P: the wheel in
+contact and the contact near enough to its linearisation (a Hertz spring's stiffness
+changes by ±30 % over that range, the foundation's not at all)."""
+
+RING_SETTLE = 0.02
+"""s after the previous window's end before the ringing fit may start (its bounces over)."""
+
+
+def ringing_modes(wheel: WheelOnSite, zeta: float) -> NDArray[np.complex128]:
+    """Eigenvalues (1/s) of the wheel on its foundation damped to ``zeta``, the contact
+    linearised at the static load (as ``slowest_decay``)."""
+    f = wheel.foundation
+    m, M, k = wheel.mass, f.mass, f.stiffness
+    c = 2.0 * zeta * math.sqrt(k * M)
+    kc = 1.5 * wheel.load / (wheel.load / wheel.contact.coefficient) ** (2.0 / 3.0)
+    a = np.array(
+        [
+            [0.0, 1.0, 0.0, 0.0],
+            [-kc / m, 0.0, kc / m, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+            [kc / M, 0.0, -(kc + k) / M, -c / M],
+        ]
+    )
+    return np.asarray(np.linalg.eigvals(a), dtype=np.complex128)
+
+
+def remove_ringing(
+    wheel: WheelOnSite,
+    zeta: float,
+    sensor: SensorModel,
+    t: NDArray[np.float64],
+    f: NDArray[np.float64],
+    win: list[tuple[int, int]],
+) -> NDArray[np.float64]:
+    """The record with the ringing the wheel brings to each window taken out of the window.
+
+    A wheel on a lightly damped foundation arrives at its flat still ringing from the last
+    turn's impact; a template from steady rolling cannot have that. Before the flat's dip
+    the wheel rolls in contact on a round tread, where the wheel on its foundation is
+    linear about the static load: its free motion is a sum of its modes (``ringing_modes``).
+    Their amplitudes and phases (the state the wheel arrives with) are fitted by least
+    squares to the record's last ``RING_FIT`` s before each window (the modes passed
+    through the site's chain), and the free motion continued over the window is
+    subtracted there; only over stretches where the record stays within ``RING_CONTACT``
+    (the wheel in contact), and only when a turn's decay at the site's damping ratio
+    ``zeta`` leaves more than ``RING_LEFT`` of an impact's ringing; else ``f`` unchanged.
+    """
+    fnd = wheel.foundation
+    if not fnd.is_compliant or zeta <= 0.0:
+        return f
+    period_est = t[win[1][0]] - t[win[0][0]] if len(win) > 1 else 0.0
+    lam = ringing_modes(wheel, zeta)
+    if period_est > 0.0 and np.exp(np.max(lam.real) * period_est) < RING_LEFT:
+        return f
+    rate = (t.size - 1) / (t[-1] - t[0])
+    fine = sensor.fine_rate(rate)
+    out = f.copy()
+    prev_end = t[0] - RING_SETTLE
+    for i0, i1 in win:
+        t_start = t[i0]
+        a = max(t_start - RING_FIT, prev_end + RING_SETTLE, t[0])
+        prev_end = t[i1 - 1]
+        j0 = int(np.searchsorted(t, a))
+        if i0 - j0 < 40:  # too little record before the window to fit four amplitudes
+            continue
+        load = wheel.load
+        if np.min(f[j0:i0]) < RING_CONTACT * load or np.max(f[j0:i0]) > (2.0 - RING_CONTACT) * load:
+            continue  # the wheel still bounces there: not the linear free motion in contact
+        # the modes' free responses on a fine grid from before the fit (the chain settles)
+        tf = np.arange(a - 3e-3, t[i1 - 1] + 1.0 / fine, 1.0 / fine) - t_start
+        basis = []
+        for lm in lam:
+            if lm.imag < 0.0:
+                continue
+            e = np.exp(lm.real * tf)
+            if lm.imag == 0.0:
+                basis.append(e)
+            else:
+                basis += [e * np.cos(lm.imag * tf), e * np.sin(lm.imag * tf)]
+        cols = [np.interp(t[j0:i1] - t_start, tf, sensor.filter(b, fine)) for b in basis]
+        cols = [c / max(float(np.max(np.abs(c))), 1e-300) for c in cols]
+        x = np.stack([*cols, np.ones(i1 - j0)], axis=1)
+        n_fit = i0 - j0
+        coef, *_ = np.linalg.lstsq(x[:n_fit], f[j0:i0], rcond=None)
+        ring = x[n_fit:, :-1] @ coef[:-1]
+        out[i0:i1] = f[i0:i1] - ring
+    return out
+
+
+ARRIVAL_LOOK = 0.03
+"""s of record before a window in which the wheel must stay in contact for the window to
+count as an arrival from rolling (a few periods of the wheel-on-foundation mode)."""
+
+ARRIVAL_CONTACT = 0.1
+"""The wheel is taken to be in contact while the record stays above this share of P (plus
+4 noise σ: a record that touches zero has lost contact)."""
+
+
+def _clean_arrivals(
+    t: NDArray[np.float64],
+    f: NDArray[np.float64],
+    load: float,
+    noise: float,
+    win: list[tuple[int, int]],
+    kept: list[float],
+) -> tuple[list[tuple[int, int]], list[float]]:
+    """The windows whose wheel arrives rolling in contact, if there is one such.
+
+    A template is the wheel rolling steadily onto the flat. On a lightly damped foundation
+    the wheel can still be bouncing from the last turn's impact when the flat comes round
+    again (the wide set's W06 loses contact 76 % of the time, with impacts of 4-14 P in the
+    40 ms before the flat): its state at the flat is the chaotic outcome of a turn of
+    impacts (MODEL.md §7), which neither the template nor a simulation of the earlier turn
+    can have, and that window only misleads the fit. A window counts as an arrival from
+    rolling when the record stays above ``ARRIVAL_CONTACT``·P + 4σ over the
+    ``ARRIVAL_LOOK`` s before it; if at least one window does, only those are compared.
+    """
+    floor = ARRIVAL_CONTACT * load + 4.0 * noise
+    look = round(ARRIVAL_LOOK * (t.size - 1) / float(t[-1] - t[0]))
+    clean = [
+        k
+        for k, (i0, _) in enumerate(win)
+        if i0 == 0 or float(np.min(f[max(0, i0 - look) : i0])) > floor
+    ]
+    if not clean or len(clean) == len(win):
+        return win, kept
+    return [win[k] for k in clean], [kept[k] for k in clean]
 
 
 DEPTH_FACTORS = (0.7, 1.3)
@@ -684,7 +821,8 @@ def estimate_flat(
     v = speed
     if anchors.times.size >= 2:
         v = min(max(TWO_PI * R / anchors.period, 0.97 * speed), 1.03 * speed)
-    before = WINDOW_BEFORE / v + 2e-3
+    lead = anchors.lead if options.first_impact_lead else 0.0
+    before = WINDOW_BEFORE / v + 2e-3 + lead
     after = WINDOW_AFTER + (
         2.0 * sensor.order / (TWO_PI * sensor.cutoff_hz) if sensor.cutoff_hz else 0.0
     )
@@ -700,7 +838,11 @@ def estimate_flat(
             if i1 - i0 > 4:
                 win.append((i0, i1))
                 kept.append(float(a))
+    if options.clean_arrivals and len(win) > 1:
+        win, kept = _clean_arrivals(t, f, P, noise, win, kept)
     n = sum(i1 - i0 for i0, i1 in win)
+    if options.ringing and win:
+        f = remove_ringing(wheel, zeta_site, sensor, t, f, win)
     f = _clip(f, P)
     cost_round = float(sum(np.sum((f[i0:i1] - P) ** 2) for i0, i1 in win))
     windows = tuple((float(t[i0]), float(t[i1 - 1])) for i0, i1 in win)
@@ -743,6 +885,7 @@ def estimate_flat(
         turns=turns,
         period_band=band,
         max_earlier_turns=options.max_earlier_turns,
+        lead=lead,
     )
     grid = tuple(sorted(options.lengths))
     # 1. coarse: every kind, length and damping ratio of the grids
