@@ -85,10 +85,15 @@ class FlatFinding(MessageModel):
 
     kind: FlatKindName = Field(description="flat = fresh (ideal), rounded_flat = worn (haversine)")
     length: Positive = Field(description="chord (flat) or arc (rounded_flat) length, m")
-    depth: Positive = Field(description="depth, m (rounded_flat: l²/16R as fitted)")
+    depth: Positive = Field(description="depth, m (rounded_flat: fitted, 0.7-1.3 x l²/16R)")
     phase: Finite = Field(description="angular position φ0 at the site's start, rad, [0, 2π)")
     length_low: NonNegative = Field(description="lower end of the length interval, m")
     length_high: Positive = Field(description="upper end of the length interval, m")
+    depth_factor: Positive | None = Field(
+        default=None,
+        description="a worn flat's fitted depth over l²/16R (1 for a fresh flat, whose depth "
+        "follows from its chord)",
+    )
 
 
 class Diagnosis(VersionedMessage):
@@ -120,6 +125,30 @@ class Diagnosis(VersionedMessage):
     peak_force_at_line_speed: Finite | None = Field(
         description="the fitted wheel re-simulated at the site's line_speed, as the site "
         "would measure it, N; null without a line_speed"
+    )
+    peak_force_at_line_speed_low: Finite | None = Field(
+        default=None,
+        description="lower end of the line-speed forecast: the smallest peak over the length "
+        "interval's ends, the kinds that fit and the damping band, N; null without a line_speed",
+    )
+    peak_force_at_line_speed_high: Finite | None = Field(
+        default=None,
+        description="upper end of the line-speed forecast (as _low, the largest), N",
+    )
+    noise_level: NonNegative | None = Field(
+        default=None,
+        description="σ of the measurement's white noise estimated from the record itself "
+        "(its third differences), N",
+    )
+    fit_residual_ratio: NonNegative | None = Field(
+        default=None, description="fit_rms / noise_level: 1 is a fit down to the noise"
+    )
+    explained: bool | None = Field(
+        default=None,
+        description="whether the fit explains the measurement (fit_residual_ratio below the "
+        "limit the model error of unknown roughness and damping allows); when false the "
+        "verdict comes from the measured peaks and the upper end of the length interval "
+        "(null only in messages of producers older than schema 1.1)",
     )
     wall_time: NonNegative = Field(description="s spent diagnosing")
 
