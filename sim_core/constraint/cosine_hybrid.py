@@ -1,5 +1,7 @@
 """Wheels whose cells on a cosine are only partly certified: the piece sweep wherever the
-uncertified cells cannot carry the wheel, the ψ-search only where they can.
+uncertified cells cannot carry the wheel; where they can, a rounded flat's uncertified cells
+cut into boxes of wheel angle and rail phase (:mod:`sim_core.constraint.cosine_boxes`), else
+the ψ-search.
 
 :func:`~sim_core.constraint.cosine_cells.cell_cover` proves at most one local maximum of
 
@@ -18,16 +20,21 @@ reaches the least the wheel point under the centre (ψ = 0) gives, -|a| + r(φ) 
 exact ranges of r over slices of φ (:func:`_angle_windows`). These φ are the *windows*.
 Outside them the sweep (:mod:`sim_core.constraint.wheel_pieces`) is exact: every cell that
 can win is certified, and an uncertified one only contributes its ends, values of G that
-cannot win. Inside, the general ψ-search (:mod:`sim_core.constraint.general`) tabulates,
-with its own kinks (contact jumps between the hollow's local maxima and the certified
-cells' maxima, located by bisection to ~1e-13 m). The stretches share their end nodes: the
+cannot win. Inside, the ψ-search's node tabulator
+(:func:`~sim_core.constraint.general.tabulate_nodes`) tabulates with an exact global solve:
+the certified cells as the sweep solves them, the uncertified ones cut into boxes of wheel
+angle and rail phase, each with a certified shape (:mod:`sim_core.constraint.cosine_boxes`;
+within ~1e-16 m of brute force); where the boxes do not certify (a sampled outline's cells, or
+a region where no shape holds), the general ψ-search (:mod:`sim_core.constraint.general`).
+Either way the tabulator finds its own kinks (contact jumps between the hollow's local maxima
+and the certified cells' maxima, located by bisection to ~1e-13 m). The stretches share their end nodes: the
 value there is exact from both sides, the left slope is the left stretch's, the right slope
 the right one's (a kink if they differ).
 
 Worked example: the 80 mm, l²/16R-deep haversine flat (R = 0.46 m, depth 0.87 mm) on the
 paper's cosine a = 0.1 mm, λ = 5 cm: its middle ±0.035 rad is not certified; ψ_max (0.069
 rad) alone would give windows of 0.208 rad, the lift bound gives ±0.046 rad, 43 mm of each
-2.89 m turn. Over a 6 m passage from φ0 = 0 the ψ-search tabulates 3 windows (the first cut
+2.89 m turn. Over a 6 m passage from φ0 = 0 the boxes tabulate 3 windows (the first cut
 by the start), about 0.1 m, the sweep the rest:
 
     >>> from sim_core.rail import RailProfile
@@ -42,19 +49,33 @@ from __future__ import annotations
 
 import itertools
 import math
+from typing import Literal
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from sim_core.constraint.cosine_boxes import box_cover, box_max
 from sim_core.constraint.cosine_cells import offset_range, uncertified_spans
-from sim_core.constraint.general import general_nodes
+from sim_core.constraint.general import general_nodes, tabulate_nodes
 from sim_core.constraint.nodes import HERMITE_TOL, KINK_SLOPE, SL, SR, K, stretch, table_from_nodes
 from sim_core.constraint.table import ConstraintTable
-from sim_core.constraint.wheel_pieces import cosine_cover, needs_cells, tabulate_pieces_kernel
+from sim_core.constraint.wheel_pieces import (
+    PiecesCase,
+    cosine_cover,
+    global_solve,
+    needs_cells,
+    tabulate_pieces_kernel,
+)
 from sim_core.rail import RailProfile
 from sim_core.wheel import TWO_PI, WheelOutline
 
-__all__ = ["contact_windows", "supports_cosine_hybrid", "tabulate_cosine_hybrid"]
+__all__ = ["WindowSolve", "contact_windows", "supports_cosine_hybrid", "tabulate_cosine_hybrid"]
+
+WindowSolve = Literal["boxes", "search"]
+"""How the windows are solved: ``"boxes"`` (the uncertified cells cut into boxes of wheel angle
+and rail phase, :mod:`sim_core.constraint.cosine_boxes`; the ψ-search where they do not
+certify) or ``"search"`` (the ψ-search)."""
 
 WINDOW_MARGIN = 1e-7
 """Extra wheel angle (rad) on both sides of a window, against round-off in φ = φ0 + x/R."""
@@ -109,6 +130,49 @@ def _angle_windows(wheel: WheelOutline, rail: RailProfile) -> list[tuple[float, 
     return out
 
 
+_BOXES: dict[int, tuple[NDArray[np.float64], NDArray[np.float64] | None]] = {}
+"""Box cover per cell cover (keyed by the cached cover's id, the cover kept with it)."""
+
+
+def _boxes(wheel: WheelOutline, rail: RailProfile) -> NDArray[np.float64] | None:
+    """:func:`~sim_core.constraint.cosine_boxes.box_cover` of the wheel's cover, kept."""
+    cells, _ = cosine_cover(wheel, rail)
+    got = _BOXES.get(id(cells))
+    if got is not None and got[0] is cells:
+        return got[1]
+    boxes = box_cover(wheel, rail, cells)
+    if len(_BOXES) >= 64:
+        _BOXES.clear()
+    _BOXES[id(cells)] = (cells, boxes)
+    return boxes
+
+
+@numba.njit(cache=True)
+def _window_solve(
+    x: float, args: tuple[PiecesCase, float, float, NDArray[np.float64]]
+) -> tuple[float, float, float]:
+    """(y_C^k, ψ, x_D) at x: the certified cells (an uncertified one gives its ends) and the
+    boxes. ψ is asin((x_D - x)/R), continuous along a contact branch and across the hand-over
+    between a box and a cell (the node tabulator reads contact jumps from it)."""
+    pc, phase, drg, B = args
+    R = pc.R
+    phi = phase + x / R
+    hint = pc.n * math.floor((phi - pc.P[0, 0]) / (2.0 * math.pi))
+    v, _, _, xd, _ = global_solve(pc, phase, drg, x, hint)
+    vb, xb = box_max(B, R, pc.ra, pc.rl, pc.psi_max, x, phi)
+    if vb > v:
+        v, xd = vb, xb
+    return v, math.asin(min(1.0, max(-1.0, (xd - x) / R))), xd
+
+
+@numba.njit(cache=True)
+def _window_nodes(
+    x0: float, x1: float, nint: int, args: tuple[PiecesCase, float, float, NDArray[np.float64]]
+) -> NDArray[np.float64]:
+    """Node rows over [x0, x1] of :func:`_window_solve` (the ψ-search's node tabulator)."""
+    return tabulate_nodes(_window_solve, x0, x1, nint, False, args)
+
+
 def contact_windows(
     wheel: WheelOutline, rail: RailProfile, phase: float, x0: float, x1: float
 ) -> list[tuple[float, float]]:
@@ -160,10 +224,15 @@ def tabulate_cosine_hybrid(
     phase: float,
     dx: float | None,
     resolution: float,
+    windows: WindowSolve = "boxes",
 ) -> ConstraintTable:
     """The table of the wheel on a cosine over [a, b]: the sweep on the cover's cells outside
-    :func:`contact_windows`, the ψ-search inside (node spacing ``dx``, default the resolution
-    capped at 2 mm for the sweep and half of that for the ψ-search, as each alone uses)."""
+    :func:`contact_windows`, inside the boxes' exact solve (``windows="boxes"``, if the
+    uncertified cells are certified as boxes) or the ψ-search (node spacing ``dx``, default
+    the resolution capped at 2 mm for the sweep and half of that in the windows, as each alone
+    uses)."""
+    if windows not in ("boxes", "search"):
+        raise ValueError(f"cosine hybrid: windows must be 'boxes' or 'search', got {windows!r}")
     if not supports_cosine_hybrid(wheel, rail):
         raise ValueError(
             f"cosine hybrid: a {wheel.kind!r} wheel on a {rail.kind!r} rail has no uncertified cells"
@@ -174,6 +243,9 @@ def tabulate_cosine_hybrid(
     x0, x1, _ = stretch(a, b, step, 0.0)
     cells, psi_max = cosine_cover(wheel, rail)
     rc, ra, rl, _, _ = rail.compiled_args()
+    boxes = _boxes(wheel, rail) if windows == "boxes" else None
+    pc = PiecesCase(cells, cells.shape[0], R, rc, ra, rl, psi_max)
+    drg = float(cells[:, 7].max())
     edges = [x0]
     kinds = []
     for wa, wb in contact_windows(wheel, rail, phase, x0, x1):
@@ -190,7 +262,10 @@ def tabulate_cosine_hybrid(
     for (xa, xb), searched in zip(itertools.pairwise(edges), kinds, strict=True):
         if searched:
             nint = max(math.ceil((xb - xa) / step_search), 2)
-            parts.append(general_nodes(wheel, rail, phase, xa, xb, nint))
+            if boxes is not None:
+                parts.append(_window_nodes(xa, xb, nint, (pc, float(phase), drg, boxes)))
+            else:
+                parts.append(general_nodes(wheel, rail, phase, xa, xb, nint))
         else:
             nint = max(math.ceil((xb - xa) / step), 2)
             parts.append(

@@ -30,7 +30,7 @@ is above it:
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numba
 import numpy as np
@@ -60,7 +60,6 @@ from sim_core.constraint.nodes import (
     stretch,
     table_from_nodes,
 )
-from sim_core.constraint.roots import bisect
 from sim_core.constraint.table import ConstraintTable
 from sim_core.rail import RAIL_SAMPLED, RAIL_STEP, RailProfile, rail_height
 from sim_core.wheel import (
@@ -71,7 +70,7 @@ from sim_core.wheel import (
     wheel_offset,
 )
 
-__all__ = ["evaluate_exact", "general_nodes", "tabulate_general"]
+__all__ = ["evaluate_exact", "general_nodes", "tabulate_general", "tabulate_nodes"]
 
 
 class SearchCase(NamedTuple):
@@ -408,33 +407,62 @@ def _solve_t(x: float, args: tuple) -> tuple[float, float, float]:
     return _solve(x, phase, dpsi, gmax, sc, st)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _locate(
-    lo: float, hi: float, plo: float, glo: float, phi_: float, ghi: float, args: tuple
+    solve: Any,
+    lo: float,
+    hi: float,
+    plo: float,
+    glo: float,
+    phi_: float,
+    ghi: float,
+    args: tuple,
 ) -> float:
-    """Bisection for a kink in (lo, hi): classify ψ at the midpoint against the two branches."""
-    return bisect(_on_left_branch, lo, hi, (lo, plo, glo, hi, phi_, ghi, args), 1e-13)
+    """Bisection for a kink in (lo, hi): classify ψ at the midpoint against the two branches
+    (:func:`_on_left_branch`; as :func:`~sim_core.constraint.roots.bisect` to 1e-13, written out:
+    a solve function in a tuple would not be cached)."""
+    a, b = lo, hi
+    for _ in range(200):
+        if b - a <= 1e-13 * max(1.0, abs(a)):
+            break
+        m = 0.5 * (a + b)
+        if m <= a or m >= b:
+            break
+        if _on_left_branch(solve, m, lo, plo, glo, hi, phi_, ghi, args):
+            a = m
+        else:
+            b = m
+    return 0.5 * (a + b)
 
 
-@numba.njit(cache=True)
-def _on_left_branch(m: float, branches: tuple) -> bool:
+@numba.njit(cache=True, inline="always")
+def _on_left_branch(
+    solve: Any,
+    m: float,
+    lo: float,
+    plo: float,
+    glo: float,
+    hi: float,
+    phi_: float,
+    ghi: float,
+    args: tuple,
+) -> bool:
     """True if ψ at m is nearer the left branch (ψ = plo + glo·(m - lo)) than the right."""
-    lo, plo, glo, hi, phi_, ghi, args = branches
-    _, pm, _ = _solve_t(m, args)
+    _, pm, _ = solve(m, args)
     da = abs(pm - (plo + glo * (m - lo)))
     db = abs(pm - (phi_ + ghi * (m - hi)))
     return da <= db
 
 
-@numba.njit(cache=True)
-def _kink_row(xk: float, args: tuple, out: NDArray[np.float64]) -> None:
+@numba.njit(cache=True, inline="always")
+def _kink_row(solve: Any, xk: float, args: tuple, out: NDArray[np.float64]) -> None:
     """A kink node at xk: one-sided second-order slopes and ψ-branches on both sides."""
     eps = SLOPE_STEP
-    vk, _, _ = _solve_t(xk, args)
-    vl1, pl1, _ = _solve_t(xk - eps, args)
-    vl2, pl2, _ = _solve_t(xk - 2.0 * eps, args)
-    vr1, pr1, xdr = _solve_t(xk + eps, args)
-    vr2, pr2, _ = _solve_t(xk + 2.0 * eps, args)
+    vk, _, _ = solve(xk, args)
+    vl1, pl1, _ = solve(xk - eps, args)
+    vl2, pl2, _ = solve(xk - 2.0 * eps, args)
+    vr1, pr1, xdr = solve(xk + eps, args)
+    vr2, pr2, _ = solve(xk + 2.0 * eps, args)
     out[X] = xk
     out[V] = vk
     out[SL] = (3.0 * vk - 4.0 * vl1 + vl2) / (2.0 * eps)
@@ -447,9 +475,14 @@ def _kink_row(xk: float, args: tuple, out: NDArray[np.float64]) -> None:
     out[K] = 1.0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def _make_node(
-    xv: float, fixed: bool, args: tuple, row: NDArray[np.float64], row2: NDArray[np.float64]
+    solve: Any,
+    xv: float,
+    fixed: bool,
+    args: tuple,
+    row: NDArray[np.float64],
+    row2: NDArray[np.float64],
 ) -> int:
     """Node(s) at xv into row (and row2, sorted by x); returns how many (1 or 2).
 
@@ -458,9 +491,9 @@ def _make_node(
     one-sided slope, and the kink is a second node).
     """
     eps = SLOPE_STEP
-    v0, p0, xd0 = _solve_t(xv, args)
-    vm, pm, _ = _solve_t(xv - eps, args)
-    vp, pp, _ = _solve_t(xv + eps, args)
+    v0, p0, xd0 = solve(xv, args)
+    vm, pm, _ = solve(xv - eps, args)
+    vp, pp, _ = solve(xv + eps, args)
     if not (_jumpy(p0 - pm, pp - p0) or abs(vm - 2.0 * v0 + vp) > KINK_CURVATURE * eps * eps):
         row[X] = xv
         row[V] = v0
@@ -473,13 +506,13 @@ def _make_node(
         row[GR] = row[GL]
         row[K] = 0.0
         return 1
-    xk = _locate(xv - eps, xv + eps, pm, 0.0, pp, 0.0, args)
+    xk = _locate(solve, xv - eps, xv + eps, pm, 0.0, pp, 0.0, args)
     if not fixed or abs(xk - xv) < 1e-12 * max(1.0, abs(xv)):
-        _kink_row(xv if fixed else xk, args, row)
+        _kink_row(solve, xv if fixed else xk, args, row)
         return 1
     side = -1.0 if xk > xv else 1.0
-    v1, p1, _ = _solve_t(xv + side * eps, args)
-    v2, _, _ = _solve_t(xv + 2.0 * side * eps, args)
+    v1, p1, _ = solve(xv + side * eps, args)
+    v2, _, _ = solve(xv + 2.0 * side * eps, args)
     row[X] = xv
     row[V] = v0
     row[SL] = side * (-3.0 * v0 + 4.0 * v1 - v2) / (2.0 * eps)
@@ -490,7 +523,7 @@ def _make_node(
     row[GL] = side * (p1 - p0) / eps
     row[GR] = row[GL]
     row[K] = 0.0
-    _kink_row(xk, args, row2)
+    _kink_row(solve, xk, args, row2)
     if xk < xv:
         tmp = row.copy()
         row[:] = row2
@@ -498,15 +531,22 @@ def _make_node(
     return 2
 
 
-@numba.njit(cache=True)
-def _tabulate_general(
+@numba.njit(cache=True, inline="always")
+def tabulate_nodes(
+    solve: Any,
     x0: float,
     x1: float,
     nint: int,
     periodic: bool,
     args: tuple,
 ) -> NDArray[np.float64]:
-    """Nodes (rows: x, y, slopes, x_D, ψ, dψ/dx, kink flag) of the general case, sorted by x."""
+    """Nodes (rows: x, y, slopes, x_D, ψ, dψ/dx, kink flag) over [x0, x1], sorted by x, from
+    the global solve ``solve(x, args)`` → (y_C^k, ψ*, x_D) (the ψ-search's :func:`_solve_t`,
+    or another exact global solve with a contact angle continuous along each contact branch).
+
+    It and the helpers that take ``solve`` are inlined into each caller (``_tabulate_general``,
+    :mod:`sim_core.constraint.cosine_hybrid`): a compiled function handed to a function that is
+    not inlined makes the caller impossible to cache."""
     eps = SLOPE_STEP
     nodes = np.empty((2 * nint + 64, NCOL))
     nn = 0
@@ -517,7 +557,7 @@ def _tabulate_general(
     last = nint - 1 if periodic else nint
     for i in range(last + 1):
         xv = x0 + i * hgrid if i < nint else x1
-        k = _make_node(xv, (i == 0) or (i == nint), args, row, row2)
+        k = _make_node(solve, xv, (i == 0) or (i == nint), args, row, row2)
         nodes = grow(nodes, nn + 2)
         nodes[nn] = row
         nn += 1
@@ -549,7 +589,7 @@ def _tabulate_general(
                     if hi - lo <= 1e-13 * scale:
                         break
                     m = 0.5 * (lo + hi)
-                    _, pm, _ = _solve_t(m, args)
+                    _, pm, _ = solve(m, args)
                     pa = nodes[ia, PR] + nodes[ia, GR] * (m - xa)
                     pb = nodes[ib, PL] + nodes[ib, GL] * (m - xb)
                     da = abs(pm - pa)
@@ -567,20 +607,20 @@ def _tabulate_general(
                         hi = m
             else:
                 lo = _locate(
-                    xa, xb, nodes[ia, PR], nodes[ia, GR], nodes[ib, PL], nodes[ib, GL], args
+                    solve, xa, xb, nodes[ia, PR], nodes[ia, GR], nodes[ib, PL], nodes[ib, GL], args
                 )
                 hi = lo
             if not math.isnan(third):
-                k = _make_node(third, False, args, row, row2)
+                k = _make_node(solve, third, False, args, row, row2)
             else:
-                _kink_row(0.5 * (lo + hi), args, row)
+                _kink_row(solve, 0.5 * (lo + hi), args, row)
                 k = 1
             have = True
         elif h > 4.0 * eps:
             # the node at the midpoint, kept unless the Hermite matches its value and its slope
             # (an error odd about m is 0 there in value, but ~h/8 times its slope miss beside)
             m = 0.5 * (xa + xb)
-            k = _make_node(m, False, args, row, row2)
+            k = _make_node(solve, m, False, args, row, row2)
             hm, dm = hermite_midpoint(nodes, ia, ib, h)
             have = (
                 k == 2
@@ -607,6 +647,14 @@ def _tabulate_general(
     out = nodes[:nn]
     order = np.argsort(out[:, X], kind="mergesort")
     return out[order]
+
+
+@numba.njit(cache=True)
+def _tabulate_general(
+    x0: float, x1: float, nint: int, periodic: bool, args: tuple
+) -> NDArray[np.float64]:
+    """:func:`tabulate_nodes` with the ψ-search's solve."""
+    return tabulate_nodes(_solve_t, x0, x1, nint, periodic, args)
 
 
 def _general_args(

@@ -27,8 +27,10 @@ Which method (one module each, all compiled with numba):
   (:mod:`sim_core.constraint.wheel_pieces`);
 - such a wheel whose cells are only partly certified (e.g. an l²/16R-deep flat on the
   paper's cosine: the hollow's middle bridges crests): the sweep wherever the uncertified
-  cells cannot carry the wheel, the ψ-search only in the windows where they can, a few cm
-  per turn (:mod:`sim_core.constraint.cosine_hybrid`);
+  cells cannot carry the wheel; in the windows where they can, a few cm per turn
+  (:mod:`sim_core.constraint.cosine_hybrid`), a rounded flat's uncertified cells cut into
+  boxes of wheel angle and rail phase with certified shapes, solved exactly per position
+  (:mod:`sim_core.constraint.cosine_boxes`), or the ψ-search where those do not certify;
 - an out-of-round wheel on a sampled rail: the wheel's pieces against the rail's
   segments inside the stretches where the out-of-roundness can reach the contact, the
   round wheel's closed form (made once per rail and radius, kept) elsewhere

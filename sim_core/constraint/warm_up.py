@@ -22,7 +22,8 @@ def warm_up_constraint() -> float:
     first wheel: no wheel then pays for compilation. Covers the round wheel on flat,
     cosine (offset curve and ψ-search), step and sampled rails, the ideal flat on a flat rail, the piece sweep (sampled
     outline on flat and cosine rails, ideal flat on a cosine, rounded flat on a cosine by its
-    certified cells; a partly certified cover runs the same sweep and ψ-search kernels), the polyline sweep (ideal flat, rounded flat and
+    certified cells; a partly certified cover: the sweep and, in its windows, the boxes' solve),
+    the polyline sweep (ideal flat, rounded flat and
     sampled outline on a sampled rail, with the round wheel's cached table), the general
     ψ-search, the direct solve and the table look-up. Returns the wall time it took (s).
 
@@ -56,4 +57,7 @@ def warm_up_constraint() -> float:
             tabulate_constraint(wheel, rail, -0.002, 0.002, phase=1.0).evaluate(xq)
         evaluate_exact(wheel, rails[-1], xq)
     profile_constraint(rails[-1], -0.002, 0.002).evaluate(xq)
+    # a partly certified cover (the hollow's middle in boxes): the flat at the bottom at x = 0
+    hollow = WheelOutline.rounded_flat(R, 0.08, 0.08**2 / (16 * R))
+    tabulate_constraint(hollow, RailProfile.cosine(1e-4, 0.05), -0.002, 0.002).evaluate(xq)
     return time.perf_counter() - t0

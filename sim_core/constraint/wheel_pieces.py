@@ -21,7 +21,8 @@ an x-dependent ψ₂ (G concave on one side: the interior feature is that part's
 vertex on the convex side stands alone), each clipped to the angles that can carry the wheel.
 An ``UNCERTIFIED`` cell gives only its ends (values of G, never above its maximum): the sweep
 runs on such a cover only over wheel positions where that cell cannot carry the wheel
-(:mod:`sim_core.constraint.cosine_hybrid`; the ψ-search takes the others).
+(:mod:`sim_core.constraint.cosine_hybrid` takes the others: exactly in boxes of wheel angle and
+rail phase, :mod:`sim_core.constraint.cosine_boxes`, or by the ψ-search).
 y_C^k(x) is the maximum over the pieces; the winner is a *feature*:
 
 - ``2g``: the interior of piece g (the contact point slides along it; slope by the
@@ -98,6 +99,7 @@ __all__ = [
     "PIECE_HAVERSINE",
     "PIECE_LINEAR",
     "cosine_cover",
+    "global_solve",
     "needs_cells",
     "supports",
     "tabulate_pieces",
@@ -735,6 +737,11 @@ def _global(
                     best, bf, bs, bx = v, f, s, xd
             g += direction
     return best, bf, bs, bx, g0
+
+
+global_solve = _global
+"""The per-position global solve (y_C^k, feature, slope, x_D, piece under the centre) for
+other tabulators (:mod:`sim_core.constraint.cosine_hybrid`)."""
 
 
 @numba.njit(cache=True)
