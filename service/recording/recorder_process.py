@@ -110,6 +110,8 @@ class ProcessRecorder:
         self.failures = 0
         self.last_failure: str | None = None
         self.not_drawn = 0
+        self.not_sampled = 0
+        """Results whose per-sample channel was not written because the child was behind."""
         """Passages, dents and diagnoses not drawn in Rerun because the child was behind."""
         self._mcap_path: str | None = None
         self._rrd_path: str | None = None
@@ -126,8 +128,13 @@ class ProcessRecorder:
         """``journal_ticket``: the ticket of this message's journal record, released once
         the message is in a flushed MCAP chunk."""
         if self.plan.mcap and not self._closed:
+            # a result's samples on their own channel too, unless the child is behind
+            samples = (model is PassageResult
+                       and self.pending_bytes() + len(data) <= self.plan.rerun_backlog_bytes)
+            if model is PassageResult and not samples:
+                self.not_sampled += 1
             self._put_waiting(("m", len(data), topic, model.__name__, data, log_time_ns,
-                               publish_time_ns), journal_ticket)
+                               publish_time_ns, samples), journal_ticket)
 
     def passage(self, result: PassageResult, data: bytes | None = None) -> None:
         """``data``: the result's JSON if the caller has it already (saves serialising twice)."""
@@ -245,11 +252,18 @@ class ProcessRecorder:
         if self._closed:
             return
         self._closed = True
+        behind = []
         if self.not_drawn:
+            behind.append(f"{self.not_drawn} passages, dents or diagnoses not drawn in the Rerun "
+                          "recording")
+        if self.not_sampled:
+            behind.append(f"{self.not_sampled} results not written sample by sample on the "
+                          "MCAP's samples channel")
+        if behind:
             self.failures += 1
             self.last_failure = (
-                f"{self.not_drawn} passages, dents or diagnoses not drawn in the Rerun recording: "
-                f"the recorder was more than {self.plan.rerun_backlog_bytes / 2**20:g} MB behind "
+                f"{' and '.join(behind)}: the recorder was more than "
+                f"{self.plan.rerun_backlog_bytes / 2**20:g} MB behind "
                 "(the MCAP log has them all)")
         if self._process.is_alive():
             self._queue.put(None)
@@ -358,8 +372,13 @@ def _write(item: tuple[Any, ...], models: dict[str, type[BaseModel]], mcap: Any,
         return
     kind, _size, *rest = item
     if kind == "m" and mcap is not None:
-        topic, model_name, data, log_time_ns, publish_time_ns = rest
+        topic, model_name, data, log_time_ns, publish_time_ns, with_samples = rest
         mcap.write(topic, models[model_name], data, log_time_ns, publish_time_ns)
+        if with_samples:  # plottable against time in Foxglove
+            sample_topic = foxglove.samples_topic(topic)
+            for ns, sample in foxglove.samples(data):
+                mcap.write(sample_topic, foxglove.PassageSample, sample, ns, ns,
+                           schema_name=foxglove.SAMPLE_SCHEMA_NAME)
         entry = foxglove.log_entry(model_name, data, log_time_ns)
         if entry is not None:  # errors and verdicts in Foxglove's Log panel too
             mcap.write(foxglove.log_topic(topic), foxglove.Log,
