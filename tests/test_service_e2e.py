@@ -262,7 +262,7 @@ def test_mcap_holds_every_message_and_validates(first_run: Run) -> None:
     for pid, r in results.items():  # each sample at its own time: the passage's + x/speed
         got = [(m.log_time_ns, decode(m)) for m in logged
                if m.topic == f"{p}/samples" and decode(m).passage_id == pid]
-        assert [s.force for _, s in got] == r.force
+        np.testing.assert_allclose([s.force for _, s in got], r.force, rtol=1e-6, atol=0)
         assert [t for t, _ in got] == [round((r.timestamp + x / r.speed) * 1e9) for x in r.x]
     logged_inputs = [m for m in logged if m.topic.startswith(f"{p}/passage")]
     assert logged_inputs == sorted(logged_inputs, key=lambda m: m.log_time_ns)
