@@ -291,6 +291,13 @@ def main() -> int:
             return 0
         k = kill_mid_stream(a.kill_after, tmp)
         print("kill -9:", json.dumps(k, indent=1), flush=True)
+        valid = sum(1 for i in range(a.kill_after) if i % 20 != 19)
+        if k["results_received_not_in_log"] or k["answered_inputs_missing_from_log"]:
+            print("soak FAILED: the recovered log lacks results or inputs the service had "
+                  "answered", flush=True)
+            return 1
+        print(f"soak: kill -9 recovered {k['inputs_recovered']:.0f} of {valid} valid inputs "
+              f"sent and every result received", flush=True)
     return 0
 
 
