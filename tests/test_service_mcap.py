@@ -111,7 +111,7 @@ def test_every_sample_of_a_result_is_plottable_against_time(tmp_path: Path) -> N
     for behind, name in ((64 * 2**20, "fed"), (0, "behind")):
         d = tmp_path / name
         rec = ProcessRecorder(RecordingPlan(d, "run", "s", rerun=False,
-                                            rerun_backlog_bytes=behind))
+                                            samples_backlog_bytes=behind))
         rec.message("railtwin/s/result", PassageResult, data, 1_780_000_009_000_000_000)
         rec.close()
         with sorted(d.glob("*.mcap"))[0].open("rb") as f:

@@ -10,10 +10,10 @@ sample on ``railtwin/<site>/samples``: log time and publish time = the sample's 
 (the passage's ``timestamp`` + x/speed), and the same time in a ``timestamp`` field
 (Foxglove's ``{sec, nsec}``), with the passage id, x (m), force (N) and indentation (m).
 ``/railtwin/<site>/samples.force`` then plots every wheel's force against time, across
-passages and files. Values have 7 significant digits. It costs the recorder ~5 ms a passage
+passages and files. Values have 7 significant digits. It costs the recorder ~10 ms a passage
 and the MCAP ~40 bytes a sample (zstd; ~55 kB a wheel of ``make demo``, 1 351 samples),
 so it is skipped, like a Rerun drawing, while the recorder is behind
-(``RecordingPlan.rerun_backlog_bytes``): the result holds the same series.
+(``RecordingPlan.samples_backlog_bytes``, 16 MB): the result holds the same series.
 
 **Log.**
 For every ``ServiceError`` and ``Diagnosis`` it logs, the recorder also writes a

@@ -73,6 +73,10 @@ class RecordingPlan:
     """Written as a ``railtwin`` metadata record at the start of every MCAP file."""
     rerun_backlog_bytes: int = 64 * 2**20
     """Beyond this many bytes waiting for the child, passages are not drawn in Rerun."""
+    samples_backlog_bytes: int = 16 * 2**20
+    """Beyond this many bytes waiting, a result is not also written sample by sample on the
+    MCAP's samples channel (~10 ms of the child a passage of 1 351 samples: under a flood
+    the child keeps its time for the log and the Rerun drawings)."""
     mcap_backlog_bytes: int = 256 * 2**20
     """Beyond this many bytes waiting, a message for the MCAP log waits for room."""
     rrd_part_passages: int = 5000
@@ -130,7 +134,7 @@ class ProcessRecorder:
         if self.plan.mcap and not self._closed:
             # a result's samples on their own channel too, unless the child is behind
             samples = (model is PassageResult
-                       and self.pending_bytes() + len(data) <= self.plan.rerun_backlog_bytes)
+                       and self.pending_bytes() + len(data) <= self.plan.samples_backlog_bytes)
             if model is PassageResult and not samples:
                 self.not_sampled += 1
             self._put_waiting(("m", len(data), topic, model.__name__, data, log_time_ns,
@@ -262,8 +266,7 @@ class ProcessRecorder:
         if behind:
             self.failures += 1
             self.last_failure = (
-                f"{' and '.join(behind)}: the recorder was more than "
-                f"{self.plan.rerun_backlog_bytes / 2**20:g} MB behind "
+                f"{' and '.join(behind)}: the recorder was behind "
                 "(the MCAP log has them all)")
         if self._process.is_alive():
             self._queue.put(None)
