@@ -1,14 +1,19 @@
 # railtwin: one entry point for humans and CI. Needs only python3 (3.11+), pip and make.
 #
 #   make test     venv + editable install with test extras, then ruff, mypy, pytest
+#   make warm     compile the physics into numba's cache, 2 processes (make venv runs it)
 #   make demo     start the twin on loopback, stream a sample train through it, print a line per wheel
 #   make bench    run the benchmarks (benchmarks/run_all.py)
 #   make figures  draw the paper's figures into figures/
 #   make soak     20 000-passage burst (memory must plateau), kill -9 mid-stream, recover (minutes)
-#   make validate the wheel-flat diagnosis on 90 synthetic + 15 measured-tread passages (~2 min)
+#   make validate the wheel-flat diagnosis: independent wide set + own generator (~5 min)
 #   make lint     ruff and mypy only
+#   make fleet-demo  router, three site twins, the fleet service, a growing flat's alarms (minutes)
+#   make fleet-bench the fleet at scale: 100 sites through a router, 10^6 rows, SQLite and PostgreSQL
 #
-# The venv is (re)installed only when pyproject.toml changes (stamp file).
+# The venv is (re)installed only when pyproject.toml changes (stamp file); installing
+# also compiles the physics into numba's cache (`railtwin warm`, its independent parts in
+# parallel), so that the first `make demo` or `make test` loads it instead of compiling.
 
 PYTHON ?= python3
 VENV   ?= .venv
@@ -22,21 +27,26 @@ export NUMBA_CACHE_DIR ?= $(CURDIR)/$(VENV)/numba-cache
 export RERUN_ANALYTICS ?= 0
 export PIP_DISABLE_PIP_VERSION_CHECK := 1
 
-.PHONY: help venv test lint ruff mypy pytest demo bench figures validate soak clean
+.PHONY: help venv warm test lint ruff mypy pytest demo bench figures validate soak clean fleet-demo fleet-bench
 
 help:
-	@sed -n '2,12p' Makefile | sed 's/^# \{0,1\}//'
+	@sed -n '2,14p' Makefile | sed 's/^# \{0,1\}//'
 
 $(BIN)/python:
 	$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "railtwin needs Python >= 3.11, got " + sys.version.split()[0]'
 	$(PYTHON) -m venv $(VENV)
 
+# (Python 3.11's own pip, 22.3 or later, installs a pyproject.toml project editable: no
+# pip upgrade, which cost a round trip to the index and a reinstall on every fresh venv.)
 $(STAMP): pyproject.toml | $(BIN)/python
-	$(BIN)/python -m pip install --upgrade --quiet pip
 	$(BIN)/python -m pip install --quiet -e '.[test]'
+	$(BIN)/python -m service.cli.warm
 	touch $(STAMP)
 
 venv: $(STAMP)
+
+warm: $(STAMP)
+	$(BIN)/python -m service.cli.warm
 
 ruff: $(STAMP)
 	$(BIN)/ruff check .
@@ -64,11 +74,17 @@ demo: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python -m benchmarks.run_all
 
+fleet-demo: $(STAMP)
+	$(BIN)/python -m service.cli.fleet_demo
+
+fleet-bench: $(STAMP)
+	$(BIN)/python -m benchmarks.fleet_bench
+
 soak: $(STAMP)
 	$(BIN)/python -m benchmarks.soak
 
 validate: $(STAMP)
-	$(BIN)/python -m validation.diagnosis_validation
+	nice -n 5 $(BIN)/python -m validation.diagnosis_validation
 
 figures: $(STAMP)
 	$(BIN)/python -m service.cli figures --out figures/

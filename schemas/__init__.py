@@ -1,8 +1,10 @@
 """railtwin's JSON contract: pydantic v2 models of every file and message.
 
 The models are the source of truth (CONTRACT.md fixes the field names; the
-models may add fields, never rename or drop them). Every model rejects unknown
-fields, NaN and infinities, and does not coerce strings to numbers.
+models may add fields, never rename or drop them). Every model rejects NaN and
+infinities and does not coerce strings to numbers; the models of files a person
+writes reject unknown fields (``StrictModel``), the streaming messages ignore them
+(``MessageModel``: a newer minor version may add fields).
 
 ``all_json_schemas()`` gives the JSON Schema of every top-level model, by name
 (the scenario contract's and the streaming service's messages and site file);
@@ -15,7 +17,7 @@ from typing import Any
 
 from pydantic import BaseModel
 
-from schemas._base import SCHEMA_VERSION, StrictModel
+from schemas._base import SCHEMA_VERSION, MessageModel, StrictModel
 from schemas.errors import ErrorReport, FieldError
 from schemas.result import Derived, RailSamples, Result, RunStats, Series, Summary, Transition
 from schemas.scenario import (
@@ -70,6 +72,7 @@ __all__ = [
     "FlatRail",
     "InitialState",
     "Material",
+    "MessageModel",
     "RailSamples",
     "Result",
     "RigidFoundation",

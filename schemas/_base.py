@@ -1,9 +1,15 @@
-"""Shared building blocks of the JSON contract: the strict base model and number types.
+"""Shared building blocks of the JSON contract: the base models and number types.
 
-Every model forbids unknown keys and is strict: ``"2"`` is not a number,
-``1.0`` is not an integer and ``1`` is not a boolean. Integers are accepted
-where a float is expected (JSON does not tell ``2`` from ``2.0``). NaN and
-±infinity are rejected everywhere.
+Every model is strict: ``"2"`` is not a number, ``1.0`` is not an integer and
+``1`` is not a boolean. Integers are accepted where a float is expected (JSON
+does not tell ``2`` from ``2.0``). NaN and ±infinity are rejected everywhere.
+
+Unknown keys: the files a person writes (a scenario, a site file, a sample
+train) are ``StrictModel``s and reject them, so a misspelt key is an error, not
+a silently ignored setting. The streaming messages are ``MessageModel``s and
+ignore them: a consumer reads every message of its major version, including
+one from a newer minor version that added fields (producers write only the
+fields they know).
 """
 
 from __future__ import annotations
@@ -18,9 +24,16 @@ SCHEMA_VERSION = "1.0"
 
 
 class StrictModel(BaseModel):
-    """Base of every contract model: unknown fields rejected, no silent coercion."""
+    """Base of every input file's model: unknown fields rejected, no silent coercion."""
 
     model_config = ConfigDict(extra="forbid", strict=True, frozen=True)
+
+
+class MessageModel(BaseModel):
+    """Base of every message (and of the parts only messages carry): unknown fields are
+    ignored when reading (a newer minor version may have added them), types stay strict."""
+
+    model_config = ConfigDict(extra="ignore", strict=True, frozen=True)
 
 
 Finite = Annotated[float, Field(allow_inf_nan=False)]

@@ -23,8 +23,14 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
-from schemas._base import Finite, NonNegative, Positive, StrictModel, field_error
-from schemas.messages import MESSAGE_SCHEMA_VERSION, Identifier, Version
+from schemas._base import Finite, MessageModel, NonNegative, Positive, StrictModel, field_error
+from schemas.messages import (
+    MESSAGE_SCHEMA_VERSION,
+    Identifier,
+    Version,
+    VersionedMessage,
+    WheelRef,
+)
 
 MAX_MEASURED_SAMPLES = 2_000_000
 """Cap on the samples of one measured passage (200 s at 10 kHz): larger is refused."""
@@ -40,7 +46,7 @@ DEFAULT_INSPECT_LENGTH = 0.04
 DEFAULT_REMOVE_LENGTH = 0.06
 
 
-class MeasuredPassage(StrictModel):
+class MeasuredPassage(VersionedMessage):
     """The site's measured vertical wheel–rail force of one passage.
 
     Sample k was taken at t = t_start + k / sample_rate, with t = 0 when the wheel
@@ -74,23 +80,37 @@ FlatKindName = Literal["flat", "rounded_flat"]
 Verdict = Literal["ok", "watch", "inspect", "remove"]
 
 
-class FlatFinding(StrictModel):
+class FlatFinding(MessageModel):
     """The flat the fit found."""
 
     kind: FlatKindName = Field(description="flat = fresh (ideal), rounded_flat = worn (haversine)")
     length: Positive = Field(description="chord (flat) or arc (rounded_flat) length, m")
-    depth: Positive = Field(description="depth, m (rounded_flat: l²/16R as fitted)")
+    depth: Positive = Field(description="depth, m (rounded_flat: fitted, 0.7-1.3 x l²/16R)")
     phase: Finite = Field(description="angular position φ0 at the site's start, rad, [0, 2π)")
     length_low: NonNegative = Field(description="lower end of the length interval, m")
     length_high: Positive = Field(description="upper end of the length interval, m")
+    depth_factor: Positive | None = Field(
+        default=None,
+        description="a worn flat's fitted depth over l²/16R (1 for a fresh flat, whose depth "
+        "follows from its chord)",
+    )
 
 
-class Diagnosis(StrictModel):
-    """The twin's verdict on one measured passage."""
+class Diagnosis(VersionedMessage):
+    """The twin's verdict on one measured passage; in the fleet, (site_id, passage_id) is
+    its id."""
 
     schema_version: Version = MESSAGE_SCHEMA_VERSION
     site_id: Identifier
     passage_id: Identifier
+    wheel: WheelRef | None = Field(
+        default=None, description="the passage's wheel, echoed; null when the site did not "
+        "identify it"
+    )
+    timestamp: Finite | None = Field(
+        default=None, description="the passage's timestamp, echoed, UNIX s; always set by 1.1 "
+        "producers, absent only in 1.0 messages"
+    )
     flat: FlatFinding | None = Field(description="null when no flat is found")
     verdict: Verdict
     reasons: list[str] = Field(description="each limit that was passed, named, with the values")
@@ -105,6 +125,30 @@ class Diagnosis(StrictModel):
     peak_force_at_line_speed: Finite | None = Field(
         description="the fitted wheel re-simulated at the site's line_speed, as the site "
         "would measure it, N; null without a line_speed"
+    )
+    peak_force_at_line_speed_low: Finite | None = Field(
+        default=None,
+        description="lower end of the line-speed forecast: the smallest peak over the length "
+        "interval's ends, the kinds that fit and the damping band, N; null without a line_speed",
+    )
+    peak_force_at_line_speed_high: Finite | None = Field(
+        default=None,
+        description="upper end of the line-speed forecast (as _low, the largest), N",
+    )
+    noise_level: NonNegative | None = Field(
+        default=None,
+        description="σ of the measurement's white noise estimated from the record itself "
+        "(its third differences), N",
+    )
+    fit_residual_ratio: NonNegative | None = Field(
+        default=None, description="fit_rms / noise_level: 1 is a fit down to the noise"
+    )
+    explained: bool | None = Field(
+        default=None,
+        description="whether the fit explains the measurement (fit_residual_ratio below the "
+        "limit the model error of unknown roughness and damping allows); when false the "
+        "verdict comes from the measured peaks and the upper end of the length interval "
+        "(null only in messages of producers older than schema 1.1)",
     )
     wall_time: NonNegative = Field(description="s spent diagnosing")
 

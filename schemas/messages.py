@@ -12,7 +12,15 @@ Every message is JSON with a ``schema_version``; a message's Zenoh encoding is
 | ``railtwin/<site>/result/<passage>`` | out | ``PassageResult`` |
 | ``railtwin/<site>/error`` | out | ``ServiceError`` |
 | ``railtwin/<site>/rail`` | queryable | ``RailState`` |
-| ``railtwin/health`` | queryable | ``Health`` |
+| ``railtwin/<site>/health`` | queryable | ``Health`` |
+
+A wheel is named as railways name it (``WheelRef``, docs/wheel-identity.md): the vehicle
+as the site's tag reader reads it, the wheelset counted from the vehicle's end 1 and the
+side relative to the vehicle, so ``"V/2/left"`` is the same wheel whichever way it runs.
+
+Versions: a consumer reads every message of its major version (``1.x``) and ignores the
+fields it does not know (a newer minor version adds fields, never renames or drops
+one); a message of another major version is refused with a clear error.
 
 Series share one time base: sample ``i`` is at ``t = t_start + i / sample_rate``
 and ``x = speed · t`` (the wheel centre's position along the site, 0 at the
@@ -21,24 +29,75 @@ site's start).
     >>> p = WheelPassage.model_validate_json(
     ...     '{"passage_id": "t1-a3-r", "train_id": "t1", "axle_index": 3, "side": "right",'
     ...     ' "timestamp": 1.7e9, "speed": 44.4, "load": 39240, "mass": 400, "radius": 0.46}')
-    >>> p.outline.kind, p.schema_version
-    ('round', '1.0')
+    >>> p.outline.kind, p.schema_version, p.wheel
+    ('round', '1.1', None)
+    >>> WheelRef.parse("31-80-4751-123-4/2/left").id
+    '31-80-4751-123-4/2/left'
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Annotated, Any, Literal
+import re
+from typing import TYPE_CHECKING, Annotated, Any, Final, Literal
 
-from pydantic import BaseModel, Field, field_validator, model_validator
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    Field,
+    ValidationError,
+    WithJsonSchema,
+    field_validator,
+    model_validator,
+)
+from pydantic_core import PydanticCustomError
 
-from schemas._base import Finite, NonNegative, Positive, StrictModel, field_error
+from schemas._base import Finite, MessageModel, NonNegative, Positive, StrictModel, field_error
 from schemas.result import Summary, Transition
 from schemas.scenario import TWO_PI, Outline, RoundOutline, check_outline_fits
 
-MESSAGE_SCHEMA_VERSION: Literal["1.0"] = "1.0"
-"""Version of the service's messages; a consumer accepts the same major version."""
+MESSAGE_SCHEMA_VERSION: Final = "1.1"
+"""Version of the service's messages that this build writes; it reads any ``1.x``.
 
-Version = Literal["1.0"]
+1.1 (issue 16): ``WheelRef``; ``WheelPassage.wheel``/``direction``;
+``PassageResult.wheel``; ``Diagnosis.wheel``/``timestamp``; unknown fields ignored."""
+
+MESSAGE_MAJOR: Final = 1
+"""The major version this build reads."""
+
+VERSION_PATTERN: Final = r"^1\.(0|[1-9][0-9]{0,3})$"
+"""What a readable ``schema_version`` looks like (published in the JSON Schemas)."""
+
+_VERSION_SHAPE = re.compile(r"(0|[1-9][0-9]{0,3})\.(0|[1-9][0-9]{0,3})")
+
+
+def version_problem(version: str) -> str | None:
+    """Why this build cannot read a message of ``version``, or None if it can (``1.x``)."""
+    shape = _VERSION_SHAPE.fullmatch(version)
+    if shape is None:
+        return (f"{version[:40]!r} is not a schema version <major>.<minor> (this build "
+                f"writes {MESSAGE_SCHEMA_VERSION})")
+    if int(shape.group(1)) != MESSAGE_MAJOR:
+        return (f"schema version {version} is not supported: this build reads "
+                f"{MESSAGE_MAJOR}.x messages (it writes {MESSAGE_SCHEMA_VERSION}); another "
+                "major version may change what fields mean, so the reader must be upgraded")
+    return None
+
+
+def check_message_version(version: str) -> str:
+    """``version`` if this build reads it (``1.x``), else a clear validation error."""
+    problem = version_problem(version)
+    if problem is not None:
+        raise PydanticCustomError("schema_version_unsupported", "{reason}", {"reason": problem})
+    return version
+
+
+Version = Annotated[
+    str,
+    AfterValidator(check_message_version),
+    WithJsonSchema({"type": "string", "pattern": VERSION_PATTERN,
+                    "description": "message schema version; readers accept any 1.x"}),
+]
+"""A message's ``schema_version``: any ``1.x`` is read; kept as received."""
 
 MAX_ID_LENGTH = 96
 """Longest passage, train or site id (characters)."""
@@ -59,14 +118,119 @@ Identifier = Annotated[str, Field(pattern=KEY_CHUNK)]
 
 
 def encoding_schema(model: type[BaseModel]) -> str:
-    """The schema name carried in the Zenoh encoding: ``railtwin.WheelPassage/1.0``."""
+    """The schema name carried in the Zenoh encoding: ``railtwin.WheelPassage/1.1``."""
     return f"railtwin.{model.__name__}/{MESSAGE_SCHEMA_VERSION}"
+
+
+def parse_encoding_schema(schema: str) -> tuple[str, str] | None:
+    """(model name, version) of ``railtwin.<Name>/<version>``, or None if not one."""
+    if not schema.startswith("railtwin."):
+        return None
+    name, sep, version = schema.removeprefix("railtwin.").partition("/")
+    if not sep or not name:
+        return None
+    return name, version
+
+
+def is_encoding_of(schema: str, model: type[BaseModel]) -> bool:
+    """Whether ``schema`` names ``model`` at a version this build reads (any ``1.x``).
+
+    >>> is_encoding_of("railtwin.WheelPassage/1.0", WheelPassage)
+    True
+    >>> is_encoding_of("railtwin.WheelPassage/2.0", WheelPassage)
+    False
+    """
+    parsed = parse_encoding_schema(schema)
+    if parsed is None or parsed[0] != model.__name__:
+        return False
+    try:
+        check_message_version(parsed[1])
+    except PydanticCustomError:
+        return False
+    return True
+
+
+class VersionedMessage(MessageModel):
+    """A top-level message: its ``schema_version`` is checked first, so a message of
+    another major version gets that one clear error rather than one per changed field."""
+
+    schema_version: Version = MESSAGE_SCHEMA_VERSION
+
+    @model_validator(mode="before")
+    @classmethod
+    def _major_first(cls, data: Any) -> Any:
+        version = data.get("schema_version") if isinstance(data, dict) else None
+        if isinstance(version, str):
+            problem = version_problem(version)
+            if problem is not None:
+                raise field_error("schema_version", problem)
+        return data
+
+
+# --- wheel identity ------------------------------------------------------------------------
+
+Side = Literal["left", "right"]
+Direction = Literal["end1_leading", "end2_leading"]
+
+
+class WheelIdError(ValueError):
+    """A text that is not a wheel id ``<vehicle_id>/<wheelset>/<side>``."""
+
+
+class WheelRef(MessageModel):
+    """One wheel of the fleet, named as railways name it (docs/wheel-identity.md).
+
+    ``vehicle_id`` is the vehicle as the site's tag reader (RFID/AEI) reads it;
+    ``wheelset`` counts from the vehicle's end 1 (1 = the wheelset nearest end 1);
+    ``side`` is relative to the vehicle: as seen standing off end 1, facing the vehicle
+    (towards end 2). A wheel keeps its id whichever way the vehicle runs.
+    """
+
+    vehicle_id: Identifier = Field(description="the vehicle, as the site's RFID/AEI tag reader "
+                                   "reads it; a Zenoh key chunk")
+    wheelset: int = Field(ge=1, description="wheelset number counted from the vehicle's end 1, "
+                          "1-based")
+    side: Side = Field(description="relative to the vehicle: as seen standing off end 1, "
+                       "facing the vehicle (towards end 2); not the direction of travel")
+
+    @property
+    def id(self) -> str:
+        """``<vehicle_id>/<wheelset>/<side>``: the wheel's id (also its Zenoh key suffix)."""
+        return f"{self.vehicle_id}/{self.wheelset}/{self.side}"
+
+    @classmethod
+    def parse(cls, text: str) -> WheelRef:
+        """The wheel of an id ``"V/2/left"``; ``WheelIdError`` (a ValueError) saying why not."""
+        parts = text.split("/")
+        if len(parts) != 3:
+            raise WheelIdError(f"wheel id {text[:200]!r} is not <vehicle_id>/<wheelset>/<side>, "
+                               "e.g. 31-80-4751-123-4/2/left")
+        vehicle, wheelset, side = parts
+        if not wheelset.isascii() or not wheelset.isdigit():
+            raise WheelIdError(f"wheel id {text[:200]!r}: wheelset {wheelset[:20]!r} is not a "
+                               "number (1 = the wheelset nearest the vehicle's end 1)")
+        try:
+            return cls(vehicle_id=vehicle, wheelset=int(wheelset), side=side)  # type: ignore[arg-type]
+        except ValidationError as exc:
+            e = exc.errors(include_url=False)[0]
+            raise WheelIdError(f"wheel id {text[:200]!r}: {e['loc'][0]}: {e['msg']}") from None
+
+    def rail_side(self, direction: Direction) -> Side:
+        """The rail this wheel runs on, left or right in the direction of travel.
+
+        With end 2 leading, the observer of the convention (off end 1, facing end 2)
+        looks the way the vehicle travels: vehicle sides are travel sides. With end 1
+        leading they are swapped.
+        """
+        if direction == "end2_leading":
+            return self.side
+        return "right" if self.side == "left" else "left"
 
 
 # --- in ------------------------------------------------------------------------------------
 
 
-class WheelPassage(StrictModel):
+class WheelPassage(VersionedMessage):
     """One wheel passing the measuring site, as the wayside equipment reports it.
 
     The wheel's centre enters the site (x_C = 0) at ``timestamp`` and rolls at
@@ -80,7 +244,16 @@ class WheelPassage(StrictModel):
     passage_id: Identifier = Field(description="unique id of this passage; a Zenoh key chunk")
     train_id: Identifier = Field(description="train the wheel belongs to")
     axle_index: int = Field(ge=0, description="axle number from the front of the train, 0-based")
-    side: Literal["left", "right"] = Field(description="which rail/wheel of the axle")
+    side: Side = Field(description="which rail/wheel of the axle, left or right in the "
+                       "direction of travel")
+    wheel: WheelRef | None = Field(
+        default=None, description="the wheel's identity, as the site reads it (its tag reader); "
+        "null when the site cannot identify the vehicle",
+    )
+    direction: Direction | None = Field(
+        default=None, description="which end of the vehicle leads; with wheel, wheel.side must "
+        "match side (end2_leading: the same; end1_leading: swapped)",
+    )
     timestamp: Finite = Field(description="when the wheel centre entered the site, UNIX s (UTC)")
     speed: Positive = Field(
         le=150.0,
@@ -111,11 +284,26 @@ class WheelPassage(StrictModel):
         check_outline_fits(self.outline, self.radius)
         return self
 
+    @model_validator(mode="after")
+    def _check_sides(self) -> WheelPassage:
+        """Vehicle side, direction and rail side must agree (a tag fitted the wrong way)."""
+        if self.wheel is not None and self.direction is not None:
+            expected = self.wheel.rail_side(self.direction)
+            if expected != self.side:
+                raise field_error(
+                    "side",
+                    f"is {self.side!r} but wheel {self.wheel.id} runs on the {expected} rail "
+                    f"with {self.direction} (wheel.side is relative to the vehicle, seen "
+                    "from off its end 1: the same as side with end2_leading, swapped with "
+                    "end1_leading)",
+                )
+        return self
+
 
 # --- out -----------------------------------------------------------------------------------
 
 
-class PassageSeries(StrictModel):
+class PassageSeries(VersionedMessage):
     """One quantity of one passage (or a chunk of it, with ``--pace realtime``).
 
     ``values[j]`` is sample ``first_index + j``, at t = t_start + (first_index + j)/sample_rate
@@ -138,7 +326,7 @@ class PassageSeries(StrictModel):
     values: list[Finite] = Field(description="force F, N, or indentation δ, m (δ < 0: no contact)")
 
 
-class PassageResult(StrictModel):
+class PassageResult(VersionedMessage):
     """Everything the twin computed for one passage."""
 
     schema_version: Version = MESSAGE_SCHEMA_VERSION
@@ -146,7 +334,8 @@ class PassageResult(StrictModel):
     passage_id: Identifier
     train_id: Identifier
     axle_index: int = Field(ge=0)
-    side: Literal["left", "right"]
+    side: Side
+    wheel: WheelRef | None = Field(default=None, description="the passage's wheel, echoed")
     timestamp: Finite = Field(description="the passage's timestamp, echoed, UNIX s")
     speed: Positive = Field(description="rolling speed, m/s")
     sample_rate: Positive = Field(description="output samples per second, Hz")
@@ -174,7 +363,7 @@ class PassageResult(StrictModel):
         return self
 
 
-class FieldProblem(StrictModel):
+class FieldProblem(MessageModel):
     """One problem with one field of a rejected input."""
 
     field: str = Field(description="dotted path, e.g. mass or outline.length; '' for the whole")
@@ -188,7 +377,7 @@ ErrorKind = Literal[
 ]
 
 
-class ServiceError(StrictModel):
+class ServiceError(VersionedMessage):
     """Why an input was not served. The service goes on with the next one."""
 
     schema_version: Version = MESSAGE_SCHEMA_VERSION
@@ -204,7 +393,7 @@ class ServiceError(StrictModel):
     received_at: Finite = Field(description="when the input arrived, UNIX s")
 
 
-class RailState(StrictModel):
+class RailState(VersionedMessage):
     """The site's rail now: its profile with the dents left by every wheel so far."""
 
     schema_version: Version = MESSAGE_SCHEMA_VERSION
@@ -217,7 +406,7 @@ class RailState(StrictModel):
     max_dent: NonNegative = Field(description="deepest accumulated dent, m")
 
 
-class Health(StrictModel):
+class Health(VersionedMessage):
     """How the service is doing."""
 
     schema_version: Version = MESSAGE_SCHEMA_VERSION
@@ -234,7 +423,7 @@ class Health(StrictModel):
     rrd_path: str | None = Field(default=None, description="this run's Rerun recording")
 
 
-class RejectedInput(StrictModel):
+class RejectedInput(VersionedMessage):
     """An input that could not be read as a WheelPassage (MCAP log only), kept verbatim."""
 
     schema_version: Version = MESSAGE_SCHEMA_VERSION

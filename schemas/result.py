@@ -12,7 +12,15 @@ from typing import Literal
 
 from pydantic import Field, model_validator
 
-from schemas._base import SCHEMA_VERSION, Finite, NonNegative, Positive, StrictModel, field_error
+from schemas._base import (
+    SCHEMA_VERSION,
+    Finite,
+    MessageModel,
+    NonNegative,
+    Positive,
+    StrictModel,
+    field_error,
+)
 from schemas.scenario import Scenario
 
 TransitionKind = Literal["loss", "contact", "yield", "unyield"]
@@ -52,16 +60,17 @@ class Series(StrictModel):
         return self
 
 
-class Transition(StrictModel):
-    """A located change of contact state, at its exact time."""
+class Transition(MessageModel):
+    """A located change of contact state, at its exact time (part of messages too: unknown
+    fields ignored)."""
 
     t: Finite = Field(description="time, s")
     kind: TransitionKind
     x: Finite | None = Field(default=None, description="wheel position x_C at that time, m")
 
 
-class Summary(StrictModel):
-    """Scalar outcome of one passage."""
+class Summary(MessageModel):
+    """Scalar outcome of one passage (part of messages too: unknown fields ignored)."""
 
     peak_force: Finite = Field(description="largest contact force, N")
     min_force: Finite = Field(description="smallest contact force, N (0 if contact was lost)")

@@ -44,6 +44,8 @@ from sim_core.integrate_types import (
     Params,
     Table,
     Work,
+    as_bool,
+    as_int,
     kernel,
 )
 
@@ -83,7 +85,7 @@ def value_at(
     ``Params`` and ``Table`` (~65 words) for a dense evaluation and a look-up.
     """
     if kind == F_FORCE_RATE:
-        _, q, hint = force_rate(s, t, h, coef, par, tab, False, hint)
+        _, q, hint = force_rate(s, t, h, coef, par, tab, as_bool(False), hint)
         return q, hint
     d, r, hint = delta_rate(s, t, h, coef, par, tab, hint)
     if kind == F_RATE:
@@ -146,7 +148,9 @@ def locate_event(
 ) -> tuple[float, int]:
     """The first fraction with g > 0 in (sa, sb], to ``EVENT_TOL`` in time."""
     tol = EVENT_TOL / h if h > 0 else EVENT_TOL
-    s, _, hint = find_root(kind, 1.0, sa, ga, sb, gb, t, h, coef, par, tab, tol, 0.0, 200, hint)
+    s, _, hint = find_root(
+        as_int(kind), 1.0, sa, ga, sb, gb, t, h, coef, par, tab, tol, 0.0, as_int(200), hint
+    )
     return s, hint
 
 
@@ -336,17 +340,23 @@ def detect_in_contact(
     ev_kind = NO_EVENT
     if mode == ELASTIC:
         if dmin <= 0.0:
-            s_l, hint = first_crossing(EV_LOSS, t, h, coef, par, tab, SCAN_POINTS, hint)
+            s_l, hint = first_crossing(
+                as_int(EV_LOSS), t, h, coef, par, tab, as_int(SCAN_POINTS), hint
+            )
             if s_l >= 0.0:
                 ev_s = s_l
                 ev_kind = EV_LOSS
         if par.law != HERTZ and dmax > par.d_y:
-            s_y, hint = first_crossing(EV_YIELD, t, h, coef, par, tab, SCAN_POINTS, hint)
+            s_y, hint = first_crossing(
+                as_int(EV_YIELD), t, h, coef, par, tab, as_int(SCAN_POINTS), hint
+            )
             if s_y >= 0.0 and (ev_s < 0.0 or s_y < ev_s):
                 ev_s = s_y
                 ev_kind = EV_YIELD
     elif dmin < par.d_y:
-        s_u, hint = first_crossing(EV_UNYIELD, t, h, coef, par, tab, SCAN_POINTS, hint)
+        s_u, hint = first_crossing(
+            as_int(EV_UNYIELD), t, h, coef, par, tab, as_int(SCAN_POINTS), hint
+        )
         if s_u >= 0.0:
             ev_s = s_u
             ev_kind = EV_UNYIELD
@@ -377,6 +387,7 @@ def extremum_in(
     """
     sign = -1.0 if fa > 0.0 else 1.0
     _, sm, hint = find_root(
-        kind, sign, 0.0, sign * fa, 1.0, sign * fb, t, h, coef, par, tab, 1e-11 / h, g_tol, 60, hint
+        as_int(kind), sign, 0.0, sign * fa, 1.0, sign * fb, t, h, coef, par, tab, 1e-11 / h, g_tol,
+        as_int(60), hint,
     )
     return sm, hint

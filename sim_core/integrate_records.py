@@ -61,6 +61,7 @@ from sim_core.integrate_types import (
     X_PEAK_FORCE,
     Params,
     Table,
+    as_bool,
     kernel,
 )
 
@@ -237,13 +238,13 @@ def step_extrema(
         _fold_force(ext, loading_force(d_b, par, 1.0))
     else:
         # F = σ(x)·C·δ^(3/2): its extrema are not those of δ; locate them on q
-        f_a, q_a, hint = force_rate(0.0, t, h, coef, par, tab, False, hint)
-        f_b, q_b, hint = force_rate(1.0, t, h, coef, par, tab, True, hint)
+        f_a, q_a, hint = force_rate(0.0, t, h, coef, par, tab, as_bool(False), hint)
+        f_b, q_b, hint = force_rate(1.0, t, h, coef, par, tab, as_bool(True), hint)
         _fold_force(ext, f_a)
         _fold_force(ext, f_b)
         if (q_a > 0.0 and q_b < 0.0) or (q_a < 0.0 and q_b > 0.0):
             sm, hint = extremum_in(F_FORCE_RATE, q_a, q_b, t, h, coef, par, tab, 0.0, hint)
-            f_m, _, hint = force_rate(sm, t, h, coef, par, tab, False, hint)
+            f_m, _, hint = force_rate(sm, t, h, coef, par, tab, as_bool(False), hint)
             _fold_force(ext, f_m)
     return d_b, r_b, (r_b - r_a) / h, hint
 

@@ -47,7 +47,26 @@ takes ownership of every array argument by an atomic increment on entry and a
 decrement on exit, and a ``Table`` or ``Work`` carries six or seven arrays, so a
 call cost ~30 atomic operations (a third of a passage's time, measured with
 ``perf``). A kernel borrows its arrays instead; it must not create or return one.
+
+One compiled signature per kernel: numba types a constant argument (``EV_LOSS``,
+``True``, ``200``) as its literal value and compiles the callee once more for each
+value, as if it were a new function (``find_root`` was compiled six times, once per
+event code). Call sites pass codes and flags as ``as_int(EV_LOSS)`` and
+``as_bool(True)``, which are plain int64 and bool to the compiler (``python -m
+benchmarks.compile_times`` lists each kernel's signatures).
 """
+
+
+@numba.njit(cache=True, inline="always")
+def as_int(x: int) -> int:
+    """``x`` as a plain int64 to the compiler, not its literal value (see ``kernel``)."""
+    return int(x)
+
+
+@numba.njit(cache=True, inline="always")
+def as_bool(x: bool) -> bool:
+    """``x`` as a plain bool to the compiler, not its literal value (see ``kernel``)."""
+    return bool(x)
 
 
 class Event(IntEnum):

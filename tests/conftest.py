@@ -16,6 +16,10 @@ ROOT = Path(__file__).resolve().parent.parent
 EXAMPLES = ROOT / "examples"
 EXAMPLE_SCENARIOS = sorted(EXAMPLES.glob("*.json"))
 
+# The fleet tests' fixtures (a PostgreSQL server for the session, stores): one server for
+# every module that uses them.
+pytest_plugins = ("tests.fleet_support",)
+
 # Tests never ask Rerun's CLI about analytics, and share one numba cache.
 os.environ.setdefault("RERUN_ANALYTICS", "0")
 

@@ -504,12 +504,12 @@ def test_service_commands_register(monkeypatch: pytest.MonkeyPatch) -> None:
         p = subparsers.add_parser("hello", help="say hello")
         p.set_defaults(func=lambda args: 7)
 
-    monkeypatch.setattr(cli, "SERVICE_COMMANDS", (register,))
+    monkeypatch.setattr(cli, "SERVICE_COMMANDS", {"hello": register})
     assert cli.main(["hello"]) == 7
 
 
 @pytest.mark.parametrize("command", ["serve", "feed", "feed-measured", "synthesize", "replay",
-                                     "diagnose", "recover", "demo"])
+                                     "diagnose", "recover", "demo", "warm", "router", "fleet"])
 def test_every_entry_point_is_a_subcommand(command: str,
                                            capsys: pytest.CaptureFixture[str]) -> None:
     code, out, _ = run_main([command, "--help"], capsys)

@@ -223,12 +223,16 @@ def test_cli_diagnoses_a_flat_and_writes_the_diagnosis(tmp_path: Path,
     d = Diagnosis.model_validate_json(out.read_text())
     # accuracy is measured by validation/diagnosis_validation.py; here: the command works
     assert d.flat is not None and abs(d.flat.length - 0.06) <= 0.015
-    assert d.verdict == "remove" and any("remove_length" in r for r in d.reasons)
+    # 60 mm sits on the remove_length limit: the fit may name 58 mm; the forces remove it too
+    assert d.verdict == "remove" and any("(remove_" in r for r in d.reasons)
     assert d.peak_force_at_line_speed is not None and d.peak_force_at_line_speed > P
     assert set(json.loads(out.read_text())) >= {"schema_version", "site_id", "passage_id", "flat",
                                                 "verdict", "reasons", "peak_force_measured",
                                                 "peak_force_fit", "fit_rms",
-                                                "peak_force_at_line_speed", "wall_time"}
+                                                "peak_force_at_line_speed", "wall_time",
+                                                "peak_force_at_line_speed_low",
+                                                "peak_force_at_line_speed_high", "noise_level",
+                                                "fit_residual_ratio", "explained"}
 
 
 def test_cli_exit_2_and_one_line_on_a_bad_csv(tmp_path: Path,

@@ -16,14 +16,26 @@ FLAG = re.compile(r"(?<![\w-])(--[a-z][a-z0-9-]*|-[a-zA-Z])(?![\w-])")
 
 
 def help_flags() -> dict[str, set[str]]:
-    """Option strings of ``railtwin`` ("") and of each command, as ``--help`` shows them."""
-    parser = build_parser()
-    found = {"": _shown(parser)}
-    for action in parser._actions:
-        if isinstance(action, argparse._SubParsersAction):
-            for name, sub in action.choices.items():
-                found[name] = _shown(sub)
+    """Option strings of ``railtwin`` ("") and of each command, as ``--help`` shows them; a
+    command group's commands (``railtwin fleet serve``) under ``"fleet serve"``, the group
+    itself not (it has no flags of its own)."""
+    found: dict[str, set[str]] = {}
+    _collect(build_parser(), "", found)
     return found
+
+
+def _collect(parser: argparse.ArgumentParser, name: str, found: dict[str, set[str]]) -> None:
+    subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    if name == "" or not subs:
+        found[name] = _shown(parser)
+    for action in subs:
+        for sub_name, sub in action.choices.items():
+            _collect(sub, f"{name} {sub_name}".strip(), found)
+
+
+def _groups() -> set[str]:
+    """Commands that are groups of commands (``fleet``)."""
+    return {name.split()[0] for name in help_flags() if " " in name}
 
 
 def _shown(parser: argparse.ArgumentParser) -> set[str]:
@@ -35,6 +47,7 @@ def documented(path: Path) -> dict[str, set[str]]:
     """Flags of the ``railtwin ...`` usage lines in the code blocks of ``path``, by command
     (a line indented under one continues it)."""
     found: dict[str, set[str]] = {}
+    groups = _groups()
     in_code, command = False, None
     for line in path.read_text(encoding="utf-8").splitlines():
         if line.startswith("```"):
@@ -46,6 +59,8 @@ def documented(path: Path) -> dict[str, set[str]]:
         if line.startswith(("railtwin ", "$ railtwin ")):
             words = line.split()
             command = "" if (m is None or words[1].startswith("[")) else m.group(1)
+            if command in groups and len(words) > 2:
+                command = f"{command} {words[2]}"
             text = line
         elif command is not None and line.startswith(" "):
             text = line

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from mcap.reader import make_reader
 
-from schemas.messages import RejectedInput
+from schemas.messages import RejectedInput, ServiceError, encoding_schema
 from service.cli.main import main as cli_main
 from service.recording.mcap_log import McapLog
 from service.recording.mcap_recover import read_any, salvage
@@ -88,7 +88,6 @@ def test_the_journal_adds_back_the_inputs_the_recorder_never_wrote(tmp_path: Pat
 
 
 def test_the_journal_adds_back_answers_the_recorder_never_wrote(tmp_path: Path) -> None:
-    from schemas.messages import ServiceError
     from service.recording.input_journal import InputJournal
 
     err = ServiceError(site_id="x", kind="invalid_passage", message="m", field=None,
@@ -104,4 +103,4 @@ def test_the_journal_adds_back_answers_the_recorder_never_wrote(tmp_path: Path) 
                      "--out", str(out)]) == 0
     with out.open("rb") as f:
         got = [(s.name, c.topic, m.data) for s, c, m in make_reader(f).iter_messages()]
-    assert got[-1] == ("railtwin.ServiceError/1.0", "railtwin/x/error", err)
+    assert got[-1] == (encoding_schema(ServiceError), "railtwin/x/error", err)

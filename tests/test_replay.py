@@ -310,3 +310,14 @@ def test_replay_keeps_the_timing_and_the_bytes(tmp_path: Path) -> None:
     assert by_key == {f"railtwin/{SITE}/passage": [passage("w0"), passage("w1", load=56000.0)],
                       f"railtwin/{SITE}/measured": [measured("w0")]}
     assert elapsed >= 40e-9 / 0.5  # 40 ns of log time at half speed: the spacing is kept
+
+
+def test_a_log_of_an_older_minor_version_replays(tmp_path: Path) -> None:
+    """Inputs logged by a 1.0 twin (schema railtwin.WheelPassage/1.0) are sent; 2.0 are not."""
+    c = Crafted(tmp_path / "old.mcap")
+    c.add(f"railtwin/{SITE}/passage", "railtwin.WheelPassage/1.0", passage("old-1"))
+    c.add(f"railtwin/{SITE}/measured", "railtwin.MeasuredPassage/1.0", measured("old-1"))
+    c.add(f"railtwin/{SITE}/passage", "railtwin.WheelPassage/2.0", passage("future-1"))
+    plan = plan_replay(read_logs([c.close()]))
+    assert sent_ids(plan.inputs) == [("passage", "old-1"), ("measured", "old-1")]
+    assert plan.skipped_channels == {f"railtwin/{SITE}/passage": 1}  # the 2.0 one

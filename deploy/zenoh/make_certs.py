@@ -17,6 +17,8 @@ writes, into ``OUT_DIR`` (created if missing):
   | ``site-<site>`` | ``site-<site>`` | the site's wayside publisher               |
   | ``consumer``    | ``consumer``  | a client that reads the twin's outputs        |
   | ``intruder``    | ``intruder``  | same CA, another CN (for the tests)            |
+  | ``router``      | ``router``    | ``railtwin router`` (a region's router)        |
+  | ``fleet``       | ``fleet``     | ``railtwin fleet serve`` (the fleet service)   |
 
 Nothing is downloaded; only the ``openssl`` command is needed. This is for tests and
 for trying the setup: a real site keeps the CA key offline and issues one certificate
@@ -37,7 +39,7 @@ SAN = "subjectAltName=DNS:localhost,IP:127.0.0.1"
 
 def peer_names(site: str) -> list[str]:
     """The common names of the leaf certificates made for ``site``."""
-    return ["twin", f"site-{site}", "consumer", "intruder"]
+    return ["twin", f"site-{site}", "consumer", "intruder", "router", "fleet"]
 
 
 def _openssl(*args: str) -> None:

@@ -8,6 +8,11 @@ measured tread of ``flat_0p3_03.dat`` (a 0.38 mm deep flat; see README.md
 here for its source and licence), as a sampled outline r(θ) = R + deviation
 with the flat's centre at θ = 0; its phase puts the flat on the rail 1.2 m
 into the site. Deterministic: rerunning it gives the same file.
+
+Every wheel carries its identity (docs/wheel-identity.md): the coach's European Vehicle
+Number (check digit computed), the wheelset counted from the coach's end 1 and the side
+relative to the coach. Coaches run end 1 leading except coach 6, which runs turned
+(end 2 leading): its wheelsets count from the rear and its sides are not swapped.
 """
 
 from __future__ import annotations
@@ -27,6 +32,18 @@ FLAT_WHEEL = 13
 FLAT_FILE = HERE / "flat_0p3_03.dat"
 FLAT_HITS_AT = 1.2
 """m into the site where the flat's centre first meets the rail."""
+TURNED_CAR = 5
+"""0-based: this coach runs end 2 leading."""
+
+
+def vehicle_number(car: int) -> str:
+    """A European Vehicle Number 61 80 2090 1cc-k (coach, Germany), with its Luhn check
+    digit k, as a key chunk (spaces as '-')."""
+    digits = f"618020901{car + 1:02d}"
+    total = sum(sum(divmod(int(d) * (2 if i % 2 == 0 else 1), 10))
+                for i, d in enumerate(reversed(digits)))
+    check = (10 - total % 10) % 10
+    return f"{digits[:2]}-{digits[2:4]}-{digits[4:8]}-{digits[8:]}-{check}"
 
 
 def measured_outline(path: Path) -> tuple[float, list[float], list[float]]:
@@ -57,7 +74,15 @@ def main() -> None:
                 "passage_id": f"ic802-a{axle:02d}-r",
                 "train_id": "ic802",
                 "axle_index": axle,
-                "side": "right",
+                "side": "right",  # the instrumented rail, in the direction of travel
+                "wheel": {
+                    "vehicle_id": vehicle_number(car),
+                    # end 1 leading: the front wheelset is 1 and vehicle sides are swapped
+                    # with respect to travel; end 2 leading: counted from the rear, not swapped
+                    "wheelset": len(AXLES_IN_CAR) - j if car == TURNED_CAR else j + 1,
+                    "side": "right" if car == TURNED_CAR else "left",
+                },
+                "direction": "end2_leading" if car == TURNED_CAR else "end1_leading",
                 "timestamp": 0.0,
                 "speed": SPEED,
                 "load": load,

@@ -55,7 +55,9 @@ def table(d: Diagnosis) -> str:
         rows += [
             ("flat", f"{f.kind}, {f.length * 1e3:.1f} mm "
                      f"[{f.length_low * 1e3:.1f}, {f.length_high * 1e3:.1f}] mm"),
-            ("depth", f"{f.depth * 1e3:.3f} mm"),
+            ("depth", f"{f.depth * 1e3:.3f} mm"
+                      + ("" if f.depth_factor is None or f.kind == "flat"
+                         else f" ({f.depth_factor:.2f} x l²/16R)")),
             ("phase", f"{f.phase:.3f} rad"),
         ]
     rows += [
@@ -63,7 +65,14 @@ def table(d: Diagnosis) -> str:
         ("peak force of the fit", f"{d.peak_force_fit * kn:.1f} kN"),
         ("fit rms", f"{d.fit_rms * kn:.1f} kN"),
         ("peak at line speed", "—" if d.peak_force_at_line_speed is None
-         else f"{d.peak_force_at_line_speed * kn:.1f} kN"),
+         else f"{d.peak_force_at_line_speed * kn:.1f} kN"
+         + ("" if d.peak_force_at_line_speed_low is None
+            or d.peak_force_at_line_speed_high is None else
+            f" [{d.peak_force_at_line_speed_low * kn:.0f}, "
+            f"{d.peak_force_at_line_speed_high * kn:.0f}] kN")),
+        ("explained", "—" if d.explained is None else
+         f"{'yes' if d.explained else 'NO'} (residual {d.fit_residual_ratio or 0:.1f} x the "
+         f"record's noise {(d.noise_level or 0) * kn:.2f} kN)"),
         ("wall time", f"{d.wall_time:.2f} s"),
     ]
     w = max(len(k) for k, _ in rows)

@@ -23,7 +23,6 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import IO, Any, NoReturn, cast
 
-from service.cli import clients, demo, diagnose, recover, replay, serve
 from service.cli.common import (
     EXIT_CODES_HELP,
     EXIT_FAILURE,
@@ -370,18 +369,31 @@ def register_schema(subparsers: SubParsers) -> None:
         help="print the JSON Schemas of the contract",
         description=(
             "Print the JSON Schema of every top-level model as one JSON object "
-            "{name: schema}, or of the model NAME alone."
+            "{name: schema}, or of the model NAME alone; with --out DIR, write one file "
+            "<Name>.schema.json per model there (as committed in schemas/json/)."
         ),
         epilog=EXIT_CODES_HELP,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("name", nargs="?", metavar="NAME", help="model name, e.g. Scenario, Result")
     p.add_argument("--indent", type=int, default=2, help="JSON indentation (default 2)")
+    p.add_argument("--out", type=Path, default=None, metavar="DIR",
+                   help="write every model's schema into DIR (e.g. schemas/json) instead")
     p.set_defaults(func=cmd_schema)
 
 
 def cmd_schema(args: argparse.Namespace) -> int:
-    from schemas import all_json_schemas
+    from schemas import all_json_schemas, export
+
+    if args.out is not None:
+        if args.name is not None:
+            raise CommandError("--out writes every schema: give no NAME with it", EXIT_USAGE)
+        try:
+            paths = export.write(args.out)
+        except OSError as exc:
+            raise CommandError(f"cannot write {args.out}: {exc.strerror or exc}") from None
+        sys.stdout.write(f"wrote {len(paths)} JSON Schemas to {args.out}\n")
+        return EXIT_OK
 
     schemas = all_json_schemas()
     doc: Any = schemas
@@ -440,17 +452,102 @@ def cmd_figures(args: argparse.Namespace) -> int:
 
 BUILTIN_COMMANDS = (register_simulate, register_schema, register_figures)
 
-SERVICE_COMMANDS: tuple[Callable[[Any], Any], ...] = (
-    serve.register, clients.register_feed, clients.register_feed_measured,
-    clients.register_synthesize, replay.register, diagnose.register, recover.register,
-    demo.register,
-)
-"""The service's subcommands: serve, feed, feed-measured, synthesize, replay, diagnose,
-recover, demo."""
+def _serve(sp: SubParsers) -> None:
+    from service.cli import serve
+
+    serve.register(sp)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The full parser: built-in commands and those of the optional modules present."""
+def _feed(sp: SubParsers) -> None:
+    from service.cli import clients
+
+    clients.register_feed(sp)
+
+
+def _feed_measured(sp: SubParsers) -> None:
+    from service.cli import clients
+
+    clients.register_feed_measured(sp)
+
+
+def _synthesize(sp: SubParsers) -> None:
+    from service.cli import clients
+
+    clients.register_synthesize(sp)
+
+
+def _replay(sp: SubParsers) -> None:
+    from service.cli import replay
+
+    replay.register(sp)
+
+
+def _diagnose(sp: SubParsers) -> None:
+    from service.cli import diagnose
+
+    diagnose.register(sp)
+
+
+def _recover(sp: SubParsers) -> None:
+    from service.cli import recover
+
+    recover.register(sp)
+
+
+def _demo(sp: SubParsers) -> None:
+    from service.cli import demo
+
+    demo.register(sp)
+
+
+def _warm(sp: SubParsers) -> None:
+    from service.cli import warm
+
+    warm.register(sp)
+
+
+def _router(sp: SubParsers) -> None:
+    from service.cli import router
+
+    router.register(sp)
+
+
+def _fleet(sp: SubParsers) -> None:
+    from service.cli import fleet
+
+    fleet.register(sp)
+
+
+SERVICE_COMMANDS: dict[str, Callable[[SubParsers], None]] = {
+    "serve": _serve, "feed": _feed, "feed-measured": _feed_measured,
+    "synthesize": _synthesize, "replay": _replay, "diagnose": _diagnose, "recover": _recover,
+    "demo": _demo, "warm": _warm, "router": _router, "fleet": _fleet,
+}
+"""The service's subcommands, by name, each registered by a function that imports its module
+when called: a command line that names one (``railtwin diagnose ...``) imports only that
+module, so it does not pay for the others' imports (zenoh, MCAP, Rerun); any other command
+line (help, a built-in command, a typo) registers them all, in this order."""
+
+
+def _requested_command(argv: Sequence[str] | None) -> str | None:
+    """The subcommand named on the command line (the first argument not an option)."""
+    args = sys.argv[1:] if argv is None else list(argv)
+    for a in args:
+        if a == "--":
+            return None
+        if not a.startswith("-"):
+            return a
+    return None
+
+
+def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
+    """The parser: built-in commands and those of the optional modules present.
+
+    When ``argv`` names a subcommand of one of the optional modules (a module
+    ``service.cli.NAME`` registers the subcommand NAME), only that module is imported:
+    ``railtwin diagnose`` does not pay for the service's imports (zenoh, MCAP, Rerun).
+    Any other command line (help, a built-in command, a typo) gets them all.
+    """
     from importlib.metadata import PackageNotFoundError, version
 
     try:
@@ -477,14 +574,15 @@ def build_parser() -> argparse.ArgumentParser:
     subparsers.required = True
     for register in BUILTIN_COMMANDS:
         register(subparsers)
-    for register_service_command in SERVICE_COMMANDS:
-        register_service_command(subparsers)
+    wanted = _requested_command(argv)
+    for name in [wanted] if wanted in SERVICE_COMMANDS else list(SERVICE_COMMANDS):
+        SERVICE_COMMANDS[name](subparsers)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``railtwin`` script; returns the exit status."""
-    parser = build_parser()
+    parser = build_parser(argv)
     args = parser.parse_args(argv)
     args.debug = getattr(args, "debug", False)
     try:

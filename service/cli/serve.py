@@ -1,7 +1,11 @@
 """``railtwin serve``: run the streaming twin of one site until SIGINT/SIGTERM.
 
     railtwin serve --site examples/site.toml [--listen E]... [--connect E]...
-                   [--zenoh-config FILE] [--pace fast|realtime] [--recordings DIR]
+                   [--mode peer|client] [--zenoh-config FILE] [--pace fast|realtime]
+                   [--recordings DIR]
+
+``--connect tcp/<router>:7447`` joins a Zenoh router (``railtwin router``); with
+``--mode client`` the twin talks through its router only (docs/deployment.md).
 
 Also runnable as ``python -m service.cli.serve ...`` (what the tests do).
 """
@@ -33,6 +37,7 @@ from service.physics.worker import PhysicsPool, StartCancelledError
 from service.recording.input_journal import InputJournal
 from service.recording.mcap_log import DEFAULT_MAX_BYTES, DEFAULT_MAX_SECONDS
 from service.recording.recorder_process import ProcessRecorder, RecordingPlan
+from service.twin.diagnoses import DiagnosisStore
 from service.twin.twin import Twin
 from service.wire.limits import DEFAULT_PASSAGE_BUDGET, site_problem
 from service.wire.site import SiteFileError, load_site
@@ -49,6 +54,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "unless --zenoh-config or --connect is given)")
     p.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
                    help="Zenoh endpoint to connect to (repeatable)")
+    p.add_argument("--mode", choices=("peer", "client"), default="peer",
+                   help="Zenoh mode: peer (default) or client (through the router given with "
+                        "--connect only, as in a network of sites: docs/deployment.md)")
     p.add_argument("--zenoh-config", type=Path, default=None, metavar="FILE",
                    help="Zenoh JSON5 config file; --listen/--connect apply on top of it")
     p.add_argument("--multicast-scouting", action="store_true",
@@ -172,9 +180,12 @@ def _run(args: argparse.Namespace, stop: threading.Event, pools: list[PhysicsPoo
     if not args.stop_timeout >= 0:
         log.error("--stop-timeout must be >= 0")
         return 2
+    if args.mode == "client" and not (args.connect or args.zenoh_config):
+        log.error("--mode client needs --connect ENDPOINT (a router)")
+        return 2
     listen = args.listen or ([] if (args.zenoh_config or args.connect) else [DEFAULT_ENDPOINT])
     cfg = build_config(listen=listen, connect=args.connect, config_file=args.zenoh_config,
-                       multicast_scouting=args.multicast_scouting)
+                       multicast_scouting=args.multicast_scouting, mode=args.mode)
     if args.workers < 1:
         log.error("--workers must be >= 1")
         return 2
@@ -246,6 +257,19 @@ def _serve(args: argparse.Namespace, site: SiteConfig, cfg: zenoh.Config, listen
             metadata=(("railtwin_version", package_version()), ("site", site.model_dump_json()),
                       ("site_file", str(args.site)), ("started_at", stamp)),
         ), journal=journal)
+
+    # the diagnoses made, for catch-up queries: beside the rail state, else in memory
+    state_dir = None if args.no_state else (args.state or args.recordings / "state")
+    try:
+        diagnoses = DiagnosisStore(
+            None if state_dir is None else state_dir / f"{site.site_id}-diagnoses.sqlite")
+    except (OSError, sqlite3.Error) as exc:
+        log.error(f"diagnoses store: {exc}")
+        if recorder is not None:
+            recorder.close()
+        if journal is not None:
+            journal.close()
+        return 2
     try:
         try:
             session = open_session(cfg)
@@ -256,7 +280,8 @@ def _serve(args: argparse.Namespace, site: SiteConfig, cfg: zenoh.Config, listen
             return 1
         with session:
             twin = Twin(site, session, physics, recorder=recorder, journal=journal, pace=args.pace,
-                        chunk_period=args.chunk_period, queue_capacity=args.queue)
+                        chunk_period=args.chunk_period, queue_capacity=args.queue,
+                        diagnoses=diagnoses)
             twin.start()
             where = ", ".join(listen) if listen else "(from config)"
             log.info(f"site {site.site_id!r} ({site.length:g} m, {site.contact}), "
@@ -276,6 +301,7 @@ def _serve(args: argparse.Namespace, site: SiteConfig, cfg: zenoh.Config, listen
     finally:
         if journal is not None:
             journal.close()
+        diagnoses.close()
     if recorder is not None:
         for f in sorted(args.recordings.glob(f"{stem}-*.mcap")):
             log.info(f"MCAP log {f}")

@@ -36,14 +36,15 @@ class ServiceProcess:
         self,
         site: Path,
         *,
-        listen: str,
+        listen: str | None,
         recordings: Path,
         extra_args: tuple[str, ...] = (),
         start_timeout: float = 300.0,
         echo: bool = False,
     ) -> None:
         self.args = [
-            sys.executable, "-m", "service.cli.serve", "--site", str(site), "--listen", listen,
+            sys.executable, "-m", "service.cli.serve", "--site", str(site),
+            *(("--listen", listen) if listen is not None else ()),  # None: --connect in extra_args
             "--recordings", str(recordings), *extra_args,
         ]
         self.start_timeout = start_timeout

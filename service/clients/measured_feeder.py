@@ -43,7 +43,8 @@ def describe(d: Diagnosis, latency: float) -> str:
         f"[{d.flat.length_low * 1e3:.1f}-{d.flat.length_high * 1e3:.1f}]")
     line = "" if d.peak_force_at_line_speed is None else (
         f", {d.peak_force_at_line_speed / 1e3:.0f} kN at line speed")
-    return (f"diagnosis {d.passage_id}: {d.verdict.upper():7s} {flat}; measured peak "
+    wheel = f" (wheel {d.wheel.id})" if d.wheel is not None else ""
+    return (f"diagnosis {d.passage_id}{wheel}: {d.verdict.upper():7s} {flat}; measured peak "
             f"{d.peak_force_measured / 1e3:.0f} kN{line}; verdict {latency * 1e3:.0f} ms "
             f"after the measurement")
 

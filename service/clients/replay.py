@@ -44,7 +44,7 @@ import zenoh
 from pydantic import BaseModel, ValidationError
 
 from schemas.diagnosis import MeasuredPassage
-from schemas.messages import RejectedInput, WheelPassage, encoding_schema
+from schemas.messages import RejectedInput, WheelPassage, encoding_schema, is_encoding_of
 from service.clients.feeder import wait_matching
 from service.recording.mcap_log import LoggedMessage
 from service.recording.mcap_recover import RecoveryReport, salvage
@@ -136,9 +136,8 @@ def _classify(m: LoggedMessage) -> tuple[str, InputKind, bool] | None:
         return None
     site, kind_text, rejected = match.group(1), match.group(2), match.group(3) is not None
     kind: InputKind = "passage" if kind_text == "passage" else "measured"
-    expected = encoding_schema(RejectedInput if rejected else MODELS[kind])
-    if m.schema_name != expected:
-        return None
+    if not is_encoding_of(m.schema_name, RejectedInput if rejected else MODELS[kind]):
+        return None  # not its schema (any 1.x of it is: a log of an older twin replays)
     return site, kind, rejected
 
 

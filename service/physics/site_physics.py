@@ -115,7 +115,7 @@ class SitePhysics:
         s = summary_of(out, max_dent)
         return PassageResult(
             site_id=self.site.site_id, passage_id=p.passage_id, train_id=p.train_id,
-            axle_index=p.axle_index, side=p.side, timestamp=p.timestamp, speed=p.speed,
+            axle_index=p.axle_index, wheel=p.wheel, side=p.side, timestamp=p.timestamp, speed=p.speed,
             sample_rate=self.site.output_sample_rate, t_start=float(out.t[0]),
             site_length=self.site.length, x=out.x.tolist(), force=out.force.tolist(),
             indentation=out.delta.tolist(), y_c=out.y_c.tolist(), y_ck=out.y_ck.tolist(),

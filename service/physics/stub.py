@@ -51,7 +51,7 @@ class StubPhysics:
         self._done += 1
         return PassageResult(
             site_id=site.site_id, passage_id=passage.passage_id, train_id=passage.train_id,
-            axle_index=passage.axle_index, side=passage.side, timestamp=passage.timestamp,
+            axle_index=passage.axle_index, wheel=passage.wheel, side=passage.side, timestamp=passage.timestamp,
             speed=passage.speed, sample_rate=site.output_sample_rate, t_start=0.0,
             site_length=site.length, x=x.tolist(), force=force.tolist(),
             indentation=delta.tolist(), y_c=y_c.tolist(), y_ck=y_ck.tolist(), transitions=[],

@@ -44,6 +44,7 @@ from schemas.messages import (
     RejectedInput,
     WheelPassage,
     encoding_schema,
+    is_encoding_of,
 )
 from service.recording.input_journal import read_journal
 from service.recording.mcap_log import LoggedMessage
@@ -95,7 +96,7 @@ def read_any(paths: list[Path]) -> Iterator[LoggedMessage]:
 
 def _raw_input(m: LoggedMessage) -> bytes:
     """The payload as received for a logged input (valid or rejected), else the data."""
-    if m.schema_name == encoding_schema(RejectedInput):
+    if is_encoding_of(m.schema_name, RejectedInput):
         try:
             return base64.b64decode(RejectedInput.model_validate_json(m.data).payload_base64)
         except ValueError:  # not what its schema says: compared as it is

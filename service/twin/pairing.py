@@ -25,6 +25,7 @@ from service.physics.port import (
     PhysicsPort,
     WorkerCrashedError,
 )
+from service.twin.diagnoses import DiagnosisStore
 from service.twin.errors import service_error_from_validation
 from service.twin.inbound import Inbound
 from service.twin.intake import refused_unread
@@ -54,8 +55,11 @@ class Pairing:
 
     def __init__(self, site: SiteConfig, output: Output, physics: PhysicsPort,
                  passages: KeptPassages[WheelPassage], *,
-                 before_diagnosis: Callable[[], None] = lambda: None) -> None:
+                 before_diagnosis: Callable[[], None] = lambda: None,
+                 diagnoses: DiagnosisStore | None = None) -> None:
         self.site = site
+        # what catch-up queries are answered from (in memory when the caller keeps no state)
+        self.diagnoses = diagnoses if diagnoses is not None else DiagnosisStore(None)
         self.output = output
         self.physics = physics
         self.passages = passages
@@ -146,11 +150,15 @@ class Pairing:
                 item, "simulation_failed",
                 f"measurement of {pid} could not be diagnosed: {type(exc).__name__}: {exc}", pid)
             return
-        diag = outcome.diagnosis
+        # the wheel and the passage's time, whatever the diagnoser filled in (the fleet files
+        # each diagnosis under its wheel, site and date)
+        diag = outcome.diagnosis.model_copy(
+            update={"wheel": passage.wheel, "timestamp": passage.timestamp})
         self._diagnosed[pid] = None  # a refused measurement may be sent again, corrected
         while len(self._diagnosed) > KEPT_DIAGNOSED:
             self._diagnosed.popitem(last=False)
         data = diag.model_dump_json().encode()
+        self.diagnoses.add(pid, made_at=time.time(), timestamp=passage.timestamp, data=data)
         keys = self.output.keys
         self.output.put(keys.diagnosis(pid), f"{keys.prefix}/diagnosis", Diagnosis, data)
         self.done += 1

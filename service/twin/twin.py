@@ -13,8 +13,11 @@ Pipeline, per message on ``railtwin/<site>/passage``:
 
 With ``pace="realtime"`` the series are published in chunks when the wheel
 would reach their end (``Pacer``), and the result when it leaves the site.
-Queryables answer ``railtwin/<site>/rail`` (``RailState``) and
-``railtwin/health`` (``Health``).
+Queryables answer ``railtwin/<site>/rail`` (``RailState``), ``railtwin/<site>/health``
+and ``railtwin/health`` (``Health``), and ``railtwin/<site>/diagnoses?since=<unix s>``
+(catch-up: one ``Diagnosis`` per reply, ``service.twin.diagnoses``). Every queryable
+replies on its own concrete key, never on the query's (a wildcard query such as
+``railtwin/*/health`` gets one reply per twin).
 
 Diagnosis (when the port diagnoses: the site's own physics): measured passages come in on
 ``railtwin/<site>/measured`` (``MeasuredPassage``) through the same queue and worker and are
@@ -32,11 +35,13 @@ from typing import Any
 
 import zenoh
 
+from schemas.diagnosis import Diagnosis
 from schemas.messages import Health, RailState, WheelPassage
 from schemas.site import SiteConfig
 from service.physics.port import PhysicsPort
 from service.recording.input_journal import InputJournal
 from service.recording.recorder import RecorderFront
+from service.twin.diagnoses import MAX_REPLIES, DiagnosisStore, SinceError, parse_since
 from service.twin.inbound import Inbound
 from service.twin.intake import Intake, Stop
 from service.twin.kept_passages import KeptPassages
@@ -63,6 +68,7 @@ class Twin:
         pace: Pace = "fast",
         chunk_period: float = 0.02,
         queue_capacity: int = 10_000,
+        diagnoses: DiagnosisStore | None = None,
     ) -> None:
         self.site = site
         self.keys = SiteKeys(site.site_id)
@@ -77,7 +83,8 @@ class Twin:
         self.simulation = Simulation(site, self.output, physics, passages, pace=pace,
                                      chunk_period=chunk_period, pacer=self.pacer)
         self.pairing = Pairing(site, self.output, physics, passages,
-                               before_diagnosis=self.simulation.drain)
+                               before_diagnosis=self.simulation.drain, diagnoses=diagnoses)
+        self.diagnoses = self.pairing.diagnoses
         self.started_at = time.time()
         self._started_mono = time.monotonic()
         self._worker = threading.Thread(target=self._work, name="railtwin-worker", daemon=True)
@@ -105,8 +112,10 @@ class Twin:
         s = self.session
         self._declared = [
             s.declare_queryable(self.keys.rail, self._on_rail_query),
-            s.declare_queryable(HEALTH_KEY, self._on_health_query),
-            s.declare_queryable(self.keys.health, self._on_health_query),
+            s.declare_queryable(HEALTH_KEY, lambda q: self._on_health_query(q, HEALTH_KEY)),
+            s.declare_queryable(self.keys.health,
+                                lambda q: self._on_health_query(q, self.keys.health)),
+            s.declare_queryable(self.keys.diagnoses, self._on_diagnoses_query),
             s.declare_subscriber(self.keys.passage, self.intake.on_passage),
             s.declare_subscriber(self.keys.measured, self.intake.on_measured),
             # clients see the twin come and go: a liveliness subscriber gets PUT/DELETE
@@ -183,10 +192,33 @@ class Twin:
             except Exception as exc:
                 query.reply_err(f"rail state unavailable: {exc}")
 
-    def _on_health_query(self, query: zenoh.Query) -> None:
-        with query:
+    def _on_health_query(self, query: zenoh.Query, key: str) -> None:
+        with query:  # on the queryable's own key: a wildcard query gets one reply per twin
             data = self.health().model_dump_json().encode()
-            query.reply(query.key_expr, data, encoding=self.output.encodings[Health])
+            query.reply(key, data, encoding=self.output.encodings[Health])
+
+    def _on_diagnoses_query(self, query: zenoh.Query) -> None:
+        """Catch-up: every Diagnosis made (or of a passage) since ``?since=<unix s>``."""
+        with query:
+            try:
+                since = parse_since(query.parameters.get("since"))
+            except SinceError as exc:
+                query.reply_err(f"{self.keys.diagnoses}: {exc}")
+                return
+            if query.accepts_replies() != zenoh.ReplyKeyExpr.ANY:
+                query.reply_err(
+                    f"{self.keys.diagnoses}: each diagnosis is answered on its own key "
+                    f"{self.keys.diagnosis('<passage_id>')}: query with "
+                    "accept_replies=zenoh.ReplyKeyExpr.ANY (or add the parameter _anyke: "
+                    "?since=T;_anyke)")
+                return
+            rows = self.diagnoses.since(since, limit=MAX_REPLIES)
+            for pid, data in rows:
+                query.reply(self.keys.diagnosis(pid), data,
+                            encoding=self.output.encodings[Diagnosis])
+            if len(rows) >= MAX_REPLIES:  # the oldest first: the querier asks again from there
+                query.reply_err(f"{self.keys.diagnoses}: answer cut at {MAX_REPLIES} diagnoses "
+                                "(the oldest made first): ask again with a later since")
 
     def health(self) -> Health:
         mcap_path = self.recorder.mcap_path() if self.recorder is not None else None

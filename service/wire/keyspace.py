@@ -7,6 +7,8 @@
     ('railtwin/km12/rail', 'railtwin/health')
     >>> k.measured, k.diagnosis("t1-a0-r")
     ('railtwin/km12/measured', 'railtwin/km12/diagnosis/t1-a0-r')
+    >>> k.diagnoses
+    'railtwin/km12/diagnoses'
 """
 
 from __future__ import annotations
@@ -71,6 +73,12 @@ class SiteKeys:
 
     def diagnosis(self, passage_id: str) -> str:
         return f"{self.prefix}/diagnosis/{passage_id}"
+
+    @property
+    def diagnoses(self) -> str:
+        """The catch-up queryable: ``?since=<unix s>`` → one Diagnosis per reply, each on
+        ``diagnosis(<passage_id>)``."""
+        return f"{self.prefix}/diagnoses"
 
     def kind_of(self, key: str) -> str | None:
         """``"force"``, ``"result"``, ``"error"``, ... for a key of this site, else None."""

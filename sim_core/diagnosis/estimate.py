@@ -29,6 +29,14 @@ stands out of its own record: its *contrast*, the significance over the largest
 significance of the same flat fitted a fraction of a turn away (``NULL_OFFSETS``), is at
 least ``contrast`` (round wheels of the tuning set reached 7.7).
 
+Before any of this, a *screen* dismisses a round wheel in milliseconds: if the record stays
+closer to a round wheel's (``baseline``) than the shortest reportable flat's template would
+take it, no fit is made. A worn flat's depth is fitted within 0.7-1.3 × l²/16R after its
+length (``_refine_depth``), and the record's own noise σ is estimated from its third
+differences (``record_noise``) so that the service can say whether the fit explains the
+record. A damper stated in the site file is trusted within ``site_damping_band``.
+docs/diagnosis.md has the method, the validation on independent data and the misses.
+
 Worked example (tests/test_diagnosis.py runs it on noisy synthetic records):
 a 50 mm fresh flat at 100 km/h is found as a ``flat`` of 50 ± 2 mm.
 """
@@ -51,6 +59,7 @@ from sim_core.diagnosis.forward import (
     WheelOnSite,
     damping_ratio_of,
     simulate_window,
+    typical_rounded_depth,
     wheel_table,
     with_damping_ratio,
 )
@@ -59,7 +68,14 @@ from sim_core.diagnosis.turns import find_anchors
 from sim_core.rail import RailProfile
 from sim_core.wheel import TWO_PI
 
-__all__ = ["DEFAULT_OPTIONS", "FitOptions", "FlatEstimate", "estimate_flat"]
+__all__ = [
+    "DEFAULT_OPTIONS",
+    "FitOptions",
+    "FlatEstimate",
+    "estimate_flat",
+    "make_flat",
+    "record_noise",
+]
 
 LENGTH_GRID = (0.006, 0.01, 0.015, 0.02, 0.03, 0.04, 0.055, 0.07, 0.09, 0.115, 0.14)
 """m: the coarse grid of flat lengths tried for each kind."""
@@ -85,7 +101,14 @@ SHIFT_STEP = 5e-5
 
 @dataclass(frozen=True)
 class FitOptions:
-    """Knobs of the search, with the values the validation was run with."""
+    """Knobs of the search, with the values the validation was run with.
+
+    ``max_earlier_turns``, ``ringing`` (``remove_ringing``), ``clean_arrivals``
+    (``_clean_arrivals``) and ``first_impact_lead`` (``turns.first_impact_lead``) are ways
+    of giving the template the state a lightly damped wheel arrives with; each was measured
+    on both validation sources and none improved both (docs/diagnosis.md, "Tried and not
+    kept"), so all are off.
+    """
 
     lengths: tuple[float, ...] = LENGTH_GRID
     kinds: tuple[FlatKind, ...] = ("flat", "rounded_flat")
@@ -101,6 +124,12 @@ class FitOptions:
     damping_ratios: tuple[float, ...] = (0.0, 0.15, 0.35, 0.6)
     refine_rounds: int = 2
     dof_per_window: float = 1.5
+    site_damping_band: float = 2.0
+    max_earlier_turns: int = 0
+    screen: bool = True
+    ringing: bool = False
+    clean_arrivals: bool = False
+    first_impact_lead: bool = False
 
 
 DEFAULT_OPTIONS = FitOptions()
@@ -115,6 +144,7 @@ class Candidate:
     zeta: float
     cost: float
     centres: NDArray[np.float64]
+    depth_factor: float = 1.0
 
 
 @dataclass(frozen=True)
@@ -142,6 +172,10 @@ class FlatEstimate:
     windows: tuple[tuple[float, float], ...]
     profile: tuple[tuple[str, float, float], ...] = field(repr=False)
     wall_time: float = 0.0
+    depth_factor: float = 1.0
+    interval_kinds: tuple[FlatKind, ...] = ()
+    noise_level: float = 0.0
+    screened: bool = False
 
     @property
     def fit_rms(self) -> float:
@@ -161,17 +195,19 @@ class _Problem:
     win: list[tuple[int, int]]
     anchors: NDArray[np.float64]
     rails: RailTables
-    evaluated: dict[tuple[str, float, float], Candidate] = field(default_factory=dict)
-    tables: dict[tuple[str, float], ConstraintTable] = field(default_factory=dict)
-    templates: dict[tuple[str, float, float], tuple[NDArray[np.float64], NDArray[np.float64]]] = (
-        field(default_factory=dict)
-    )
+    evaluated: dict[tuple[str, float, float, float], Candidate] = field(default_factory=dict)
+    tables: dict[tuple[str, float, float], ConstraintTable] = field(default_factory=dict)
+    templates: dict[
+        tuple[str, float, float, float], tuple[NDArray[np.float64], NDArray[np.float64]]
+    ] = field(default_factory=dict)
     turns: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     period_band: tuple[float, float] = (0.0, 0.0)
+    max_earlier_turns: int = 0
+    lead: float = 0.0
 
     def template(self, flat: Flat, zeta: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(τ, filtered force): the flat's centre under the wheel at τ = 0 (kept)."""
-        tkey = (flat.kind, round(flat.length, 9), round(zeta, 9))
+        tkey = (flat.kind, round(flat.length, 9), round(flat.depth, 12), round(zeta, 9))
         got = self.templates.get(tkey)
         if got is not None:
             return got
@@ -185,7 +221,13 @@ class _Problem:
         v = self.speed
         half = 0.5 * flat.length / v
         t0, t1 = -(half + PRE_ROLL), half + POST_ROLL
-        key = (flat.kind, flat.length)
+        # a wheel whose last impact has not died out by this one arrives ringing: start the
+        # template that many turns earlier, so the same flat's earlier impacts set the state
+        turns_before = earlier_turns(
+            self.wheel, zeta, TWO_PI * self.wheel.radius / v, self.max_earlier_turns
+        )
+        t0 -= turns_before * TWO_PI * self.wheel.radius / v
+        key = (flat.kind, flat.length, flat.depth)
         table = self.tables.get(key)
         if table is None:  # the same flat is tried at several damping ratios
             table = wheel_table(self.wheel.radius, flat.with_phase(0.0), self.rails, v * t0, v * t1)
@@ -196,22 +238,30 @@ class _Problem:
         out = simulate_window(wheel, v, table, t0, t1, self.fine_rate)
         return out.t, _clip(self.sensor.filter(out.force, self.fine_rate), self.wheel.load)
 
-    def evaluate(self, kind: FlatKind, length: float, zeta: float) -> Candidate:
-        key = (kind, round(length, 9), round(zeta, 9))
+    def evaluate(
+        self, kind: FlatKind, length: float, zeta: float, depth_factor: float = 1.0
+    ) -> Candidate:
+        key = (kind, round(length, 9), round(zeta, 9), round(depth_factor, 6))
         got = self.evaluated.get(key)
         if got is not None:
             return got
-        R = self.wheel.radius
-        flat = Flat.ideal(R, length) if kind == "flat" else Flat.rounded(R, length)
+        flat = make_flat(self.wheel.radius, kind, length, depth_factor)
         tau, tf = self.template(flat, zeta)
         half = 0.5 * length / self.speed
         windows = [(self.t[i0:i1], self.f[i0:i1]) for i0, i1 in self.win]
         centres, total = _align_periodic(
-            tau, tf, windows, self.anchors, self.turns, half, self.period_band
+            tau, tf, windows, self.anchors, self.turns, half, self.period_band, self.lead
         )
-        cand = Candidate(kind, length, zeta, total, centres)
+        cand = Candidate(kind, length, zeta, total, centres, depth_factor)
         self.evaluated[key] = cand
         return cand
+
+
+def make_flat(radius: float, kind: FlatKind, length: float, depth_factor: float = 1.0) -> Flat:
+    """A fresh flat of ``length``, or a worn one of depth ``depth_factor``·l²/16R."""
+    if kind == "flat":
+        return Flat.ideal(radius, length)
+    return Flat.rounded(radius, length, depth_factor * typical_rounded_depth(radius, length))
 
 
 CLIP = 2.0
@@ -273,6 +323,7 @@ def _align_periodic(
     turns: NDArray[np.int64],
     half: float,
     band: tuple[float, float],
+    lead: float = 0.0,
 ) -> tuple[NDArray[np.float64], float]:
     """(flat-centre time per window, total cost) with the centres once per turn.
 
@@ -285,7 +336,9 @@ def _align_periodic(
     n = turns.astype(np.float64)
     n_max = max(float(n.max()), 1.0)
     s0_grid = np.arange(
-        anchors[0] - half - 0.012, anchors[0] + half + 0.002 + 0.5 * SHIFT_STEP, SHIFT_STEP
+        anchors[0] - half - 0.012 - lead,
+        anchors[0] + half + 0.002 + 0.5 * SHIFT_STEP,
+        SHIFT_STEP,
     )
     n_t = max(3, int(np.ceil((t_hi - t_lo) * n_max / SHIFT_STEP)) + 1)
     t_grid = np.linspace(t_lo, t_hi, n_t)
@@ -327,7 +380,7 @@ def _contrast(
     explains windows a fraction of a turn away (where a real flat has nothing): the
     significance over the largest of those null significances."""
     R = prob.wheel.radius
-    flat = Flat.ideal(R, best.length) if best.kind == "flat" else Flat.rounded(R, best.length)
+    flat = make_flat(R, best.kind, best.length, best.depth_factor)
     tau, tf = prob.template(flat, best.zeta)
     half = 0.5 * best.length / prob.speed
     t, f = prob.t, prob.f
@@ -346,7 +399,9 @@ def _contrast(
             for a in anchors[ok]
         ]
         turns = prob.turns[ok] - prob.turns[ok][0]
-        _, cost = _align_periodic(tau, tf, win, anchors[ok], turns, half, prob.period_band)
+        _, cost = _align_periodic(
+            tau, tf, win, anchors[ok], turns, half, prob.period_band, prob.lead
+        )
         n = sum(w[0].size for w in win)
         load = prob.wheel.load
         c_round = float(sum(np.sum((w[1] - load) ** 2) for w in win))
@@ -390,7 +445,7 @@ def _refine(
                 iz = zetas.index(z)
                 zlo, zhi = zetas[max(iz - 1, 0)], zetas[min(iz + 1, len(zetas) - 1)]
             else:
-                zlo, zhi = max(0.0, z - 0.06), min(zetas[-1], z + 0.06)
+                zlo, zhi = max(zetas[0], z - 0.06), min(zetas[-1], z + 0.06)
             _golden(
                 lambda zz, ln=ln: prob.evaluate(kind, ln, zz).cost,
                 zlo,
@@ -411,9 +466,15 @@ def _refine(
 
 
 def _best(
-    prob: _Problem, kind: str, *, length: float | None = None, zeta: float | None = None
+    prob: _Problem,
+    kind: str,
+    *,
+    length: float | None = None,
+    zeta: float | None = None,
+    depth_factor: float | None = 1.0,
 ) -> Candidate:
-    """The cheapest evaluated candidate of ``kind`` (at ``length`` or at ``zeta`` if given)."""
+    """The cheapest evaluated candidate of ``kind`` (at ``length``, ``zeta`` and
+    ``depth_factor`` if given)."""
     return min(
         (
             c
@@ -421,6 +482,7 @@ def _best(
             if c.kind == kind
             and (length is None or c.length == length)
             and (zeta is None or c.zeta == zeta)
+            and (depth_factor is None or c.depth_factor == depth_factor)
         ),
         key=lambda c: c.cost,
     )
@@ -464,6 +526,249 @@ def _interval(points: list[tuple[float, float]], j_max: float, best: float) -> t
     return float(min(lo, best)), float(max(hi, best))
 
 
+RING_LEFT = 0.01
+"""The fraction of an impact's ringing that may be left when the next turn's flat arrives
+for a template to start from steady rolling (1 %: a 10·P impact leaves 0.1·P, a few
+times the sensor noise)."""
+
+
+
+def slowest_decay(wheel: WheelOnSite, zeta: float) -> float:
+    """1/s: the smallest decay rate of the linearised wheel on its foundation damped to
+    ``zeta`` (the contact linearised at the static load); inf on a rigid foundation, whose
+    only mode, the undamped contact spring, the model leaves ringing at the same flat
+    through every turn (and so to the template's own pre-roll)."""
+    if not wheel.foundation.is_compliant:
+        return math.inf
+    return float(np.min(-ringing_modes(wheel, zeta).real))
+
+
+def earlier_turns(wheel: WheelOnSite, zeta: float, period: float, max_turns: int) -> int:
+    """Turns before the flat a template starts: 0 when one turn's decay leaves at most
+    ``RING_LEFT`` of the ringing, else enough turns for that (at most ``max_turns``)."""
+    sigma = slowest_decay(wheel, zeta)
+    if max_turns <= 0 or not math.isfinite(sigma):
+        return 0
+    if sigma <= 0.0:
+        return max_turns
+    need = math.log(1.0 / RING_LEFT) / (sigma * period)  # turns for the ringing to die out
+    return min(max_turns, max(0, math.ceil(need) - 1))
+
+
+RING_FIT = 0.04
+"""s of record before each window over which the arriving wheel's ringing is fitted (a few
+periods of the wheel-on-foundation mode, 60-130 Hz; well after the last turn's bounces)."""
+
+RING_CONTACT = 0.2
+"""The ringing is fitted only where the record stays within [0.2, 1.8]·P: the wheel in
+contact and the contact near enough to its linearisation (a Hertz spring's stiffness
+changes by ±30 % over that range, the foundation's not at all)."""
+
+RING_SETTLE = 0.02
+"""s after the previous window's end before the ringing fit may start (its bounces over)."""
+
+
+def ringing_modes(wheel: WheelOnSite, zeta: float) -> NDArray[np.complex128]:
+    """Eigenvalues (1/s) of the wheel on its foundation damped to ``zeta``, the contact
+    linearised at the static load (as ``slowest_decay``)."""
+    f = wheel.foundation
+    m, M, k = wheel.mass, f.mass, f.stiffness
+    c = 2.0 * zeta * math.sqrt(k * M)
+    kc = 1.5 * wheel.load / (wheel.load / wheel.contact.coefficient) ** (2.0 / 3.0)
+    a = np.array(
+        [
+            [0.0, 1.0, 0.0, 0.0],
+            [-kc / m, 0.0, kc / m, 0.0],
+            [0.0, 0.0, 0.0, 1.0],
+            [kc / M, 0.0, -(kc + k) / M, -c / M],
+        ]
+    )
+    return np.asarray(np.linalg.eigvals(a), dtype=np.complex128)
+
+
+def remove_ringing(
+    wheel: WheelOnSite,
+    zeta: float,
+    sensor: SensorModel,
+    t: NDArray[np.float64],
+    f: NDArray[np.float64],
+    win: list[tuple[int, int]],
+) -> NDArray[np.float64]:
+    """The record with the ringing the wheel brings to each window taken out of the window.
+
+    A wheel on a lightly damped foundation arrives at its flat still ringing from the last
+    turn's impact; a template from steady rolling cannot have that. Before the flat's dip
+    the wheel rolls in contact on a round tread, where the wheel on its foundation is
+    linear about the static load: its free motion is a sum of its modes (``ringing_modes``).
+    Their amplitudes and phases (the state the wheel arrives with) are fitted by least
+    squares to the record's last ``RING_FIT`` s before each window (the modes passed
+    through the site's chain), and the free motion continued over the window is
+    subtracted there; only over stretches where the record stays within ``RING_CONTACT``
+    (the wheel in contact), and only when a turn's decay at the site's damping ratio
+    ``zeta`` leaves more than ``RING_LEFT`` of an impact's ringing; else ``f`` unchanged.
+    """
+    fnd = wheel.foundation
+    if not fnd.is_compliant or zeta <= 0.0:
+        return f
+    period_est = t[win[1][0]] - t[win[0][0]] if len(win) > 1 else 0.0
+    lam = ringing_modes(wheel, zeta)
+    if period_est > 0.0 and np.exp(np.max(lam.real) * period_est) < RING_LEFT:
+        return f
+    rate = (t.size - 1) / (t[-1] - t[0])
+    fine = sensor.fine_rate(rate)
+    out = f.copy()
+    prev_end = t[0] - RING_SETTLE
+    for i0, i1 in win:
+        t_start = t[i0]
+        a = max(t_start - RING_FIT, prev_end + RING_SETTLE, t[0])
+        prev_end = t[i1 - 1]
+        j0 = int(np.searchsorted(t, a))
+        if i0 - j0 < 40:  # too little record before the window to fit four amplitudes
+            continue
+        load = wheel.load
+        if np.min(f[j0:i0]) < RING_CONTACT * load or np.max(f[j0:i0]) > (2.0 - RING_CONTACT) * load:
+            continue  # the wheel still bounces there: not the linear free motion in contact
+        # the modes' free responses on a fine grid from before the fit (the chain settles)
+        tf = np.arange(a - 3e-3, t[i1 - 1] + 1.0 / fine, 1.0 / fine) - t_start
+        basis = []
+        for lm in lam:
+            if lm.imag < 0.0:
+                continue
+            e = np.exp(lm.real * tf)
+            if lm.imag == 0.0:
+                basis.append(e)
+            else:
+                basis += [e * np.cos(lm.imag * tf), e * np.sin(lm.imag * tf)]
+        cols = [np.interp(t[j0:i1] - t_start, tf, sensor.filter(b, fine)) for b in basis]
+        cols = [c / max(float(np.max(np.abs(c))), 1e-300) for c in cols]
+        x = np.stack([*cols, np.ones(i1 - j0)], axis=1)
+        n_fit = i0 - j0
+        coef, *_ = np.linalg.lstsq(x[:n_fit], f[j0:i0], rcond=None)
+        ring = x[n_fit:, :-1] @ coef[:-1]
+        out[i0:i1] = f[i0:i1] - ring
+    return out
+
+
+ARRIVAL_LOOK = 0.03
+"""s of record before a window in which the wheel must stay in contact for the window to
+count as an arrival from rolling (a few periods of the wheel-on-foundation mode)."""
+
+ARRIVAL_CONTACT = 0.1
+"""The wheel is taken to be in contact while the record stays above this share of P (plus
+4 noise σ: a record that touches zero has lost contact)."""
+
+
+def _clean_arrivals(
+    t: NDArray[np.float64],
+    f: NDArray[np.float64],
+    load: float,
+    noise: float,
+    win: list[tuple[int, int]],
+    kept: list[float],
+) -> tuple[list[tuple[int, int]], list[float]]:
+    """The windows whose wheel arrives rolling in contact, if there is one such.
+
+    A template is the wheel rolling steadily onto the flat. On a lightly damped foundation
+    the wheel can still be bouncing from the last turn's impact when the flat comes round
+    again (the wide set's W06 loses contact 76 % of the time, with impacts of 4-14 P in the
+    40 ms before the flat): its state at the flat is the chaotic outcome of a turn of
+    impacts (MODEL.md §7), which neither the template nor a simulation of the earlier turn
+    can have, and that window only misleads the fit. A window counts as an arrival from
+    rolling when the record stays above ``ARRIVAL_CONTACT``·P + 4σ over the
+    ``ARRIVAL_LOOK`` s before it; if at least one window does, only those are compared.
+    """
+    floor = ARRIVAL_CONTACT * load + 4.0 * noise
+    look = round(ARRIVAL_LOOK * (t.size - 1) / float(t[-1] - t[0]))
+    clean = [
+        k
+        for k, (i0, _) in enumerate(win)
+        if i0 == 0 or float(np.min(f[max(0, i0 - look) : i0])) > floor
+    ]
+    if not clean or len(clean) == len(win):
+        return win, kept
+    return [win[k] for k in clean], [kept[k] for k in clean]
+
+
+DEPTH_FACTORS = (0.7, 1.3)
+"""A worn flat's depth is fitted within these multiples of l²/16R (the spread of worn
+flats' depths in the literature the wide validation space follows)."""
+
+
+def _refine_depth(prob: _Problem, cand: Candidate, options: FitOptions) -> Candidate:
+    """Fit a worn flat's depth: golden sections on the depth factor, then on the length at
+    that depth (depth and length trade off: a deeper flat looks like a longer one), twice."""
+    z, ln, df = cand.zeta, cand.length, 1.0
+    for _ in range(2):
+        _golden(
+            lambda dd, ln=ln: prob.evaluate("rounded_flat", ln, z, dd).cost,
+            DEPTH_FACTORS[0],
+            DEPTH_FACTORS[1],
+            options.refine_evaluations - 1,
+        )
+        df = _best(prob, "rounded_flat", length=ln, zeta=z, depth_factor=None).depth_factor
+        _golden(
+            lambda ll, df=df: prob.evaluate("rounded_flat", ll, z, df).cost,
+            0.9 * ln,
+            1.1 * ln,
+            options.refine_evaluations - 2,
+        )
+        ln = _best(prob, "rounded_flat", zeta=z, depth_factor=df).length
+    return _best(prob, "rounded_flat", zeta=z, depth_factor=None)
+
+
+SCREEN_NOISE_SIGMAS = 4.0
+"""The record's largest deviation from P, less this many noise σ, is what the screen
+compares (4σ: the largest of a few thousand samples of white noise)."""
+
+
+def _dismissed(
+    wheel: WheelOnSite,
+    speed: float,
+    sensor: SensorModel,
+    rate: float,
+    f: NDArray[np.float64],
+    noise: float,
+    zeta_max: float,
+    options: FitOptions,
+) -> bool:
+    """A round wheel dismissed without a fit: the record's largest deviation from a round
+    wheel's (``f`` comes here as record - round wheel on the site's rail + P), less
+    ``SCREEN_NOISE_SIGMAS`` noise σ, is below the smallest deviation the shortest
+    flat the fit would report makes, by both kinds (its template at the detection floor, the
+    most damped foundation searched, through the site's chain). A flat below the floor is
+    then dismissed too: the fit reports one only when it stands out of its record."""
+    P = wheel.load
+    deviation = float(np.max(np.abs(f - P))) - SCREEN_NOISE_SIGMAS * noise
+    if deviation <= 0.0:
+        return True
+    prob = _Problem(
+        wheel, speed, sensor, sensor.fine_rate(rate), np.zeros(0), np.zeros(0), [],
+        np.zeros(0), RailTables(RailProfile.flat()),
+    )
+    floor = detection_floor(speed, options)
+    smallest = min(
+        float(np.max(np.abs(prob.template(make_flat(wheel.radius, kind, floor), zeta_max)[1] - P)))
+        for kind in options.kinds
+    )
+    return deviation < smallest
+
+
+NOISE_DIFFERENCE_ORDER = 3
+"""The record's noise is estimated from its third differences: the measuring chain's
+low-pass leaves little of the force's own content there, white noise keeps var·20."""
+
+
+def record_noise(f: NDArray[np.float64]) -> float:
+    """σ (N) of the record's white noise: the median absolute third difference / 0.6745,
+    over sqrt(20) (the variance of a third difference of white noise). Robust to the
+    impacts, which fill a small part of the record; an upper bound when the force itself
+    has content near the Nyquist rate."""
+    if f.size <= NOISE_DIFFERENCE_ORDER + 1:
+        return 0.0
+    d = np.diff(f, NOISE_DIFFERENCE_ORDER)
+    return float(np.median(np.abs(d)) / 0.6745 / math.sqrt(20.0))
+
+
 def estimate_flat(
     wheel: WheelOnSite,
     speed: float,
@@ -471,10 +776,13 @@ def estimate_flat(
     force: NDArray[np.float64],
     sensor: SensorModel,
     options: FitOptions = DEFAULT_OPTIONS,
+    baseline: NDArray[np.float64] | None = None,
 ) -> FlatEstimate:
     """Fit a flat to the measured ``force`` at times ``t`` (s; t = 0 at the site's start).
 
     ``speed`` is the best speed known (measured or reported); the turn spacing refines it.
+    ``baseline``: a round wheel's force on the site's own rail as the site would measure it
+    at ``t`` (the screen compares the record with it; default: the static load).
     """
     start = time.perf_counter()
     t = np.asarray(t, dtype=np.float64)
@@ -485,11 +793,36 @@ def estimate_flat(
         raise ValueError("diagnosis: the measured record has non-finite values")
     R, P = wheel.radius, wheel.load
     rate = (t.size - 1) / (t[-1] - t[0])
+    noise = record_noise(f)
+    f_site = wheel.foundation
+    zetas: tuple[float, ...] = (0.0,)
+    zeta_site = 0.0
+    if f_site.is_compliant:
+        zeta_site = damping_ratio_of(f_site)
+        if zeta_site > 0.0 and options.site_damping_band > 1.0:
+            # the site states its damper: trust it within a factor (a track's damping is
+            # never zero, so a zero damper means "not known" and the whole range is searched)
+            b = options.site_damping_band
+            zetas = (round(zeta_site / b, 6), round(zeta_site, 6), round(zeta_site * b, 6))
+        else:
+            zetas = tuple(sorted({round(zeta_site, 6), *options.damping_ratios}))
+    if baseline is not None and baseline.shape != f.shape:
+        raise ValueError("diagnosis: baseline must have one value per measured sample")
+    base = baseline if baseline is not None else np.full_like(f, P)
+    if options.screen and _dismissed(
+        wheel, speed, sensor, rate, f - base + P, noise, zetas[-1], options
+    ):
+        cost = float(np.sum((_clip(f, P) - _clip(base, P)) ** 2))
+        return FlatEstimate(
+            None, None, 0.0, 0.0, 0.0, cost, cost, int(f.size), 0.0, 0.0, speed, zetas[-1],
+            (), (), time.perf_counter() - start, noise_level=noise, screened=True,
+        )
     anchors = find_anchors(t, f, P, R, speed)
     v = speed
     if anchors.times.size >= 2:
         v = min(max(TWO_PI * R / anchors.period, 0.97 * speed), 1.03 * speed)
-    before = WINDOW_BEFORE / v + 2e-3
+    lead = anchors.lead if options.first_impact_lead else 0.0
+    before = WINDOW_BEFORE / v + 2e-3 + lead
     after = WINDOW_AFTER + (
         2.0 * sensor.order / (TWO_PI * sensor.cutoff_hz) if sensor.cutoff_hz else 0.0
     )
@@ -505,7 +838,11 @@ def estimate_flat(
             if i1 - i0 > 4:
                 win.append((i0, i1))
                 kept.append(float(a))
+    if options.clean_arrivals and len(win) > 1:
+        win, kept = _clean_arrivals(t, f, P, noise, win, kept)
     n = sum(i1 - i0 for i0, i1 in win)
+    if options.ringing and win:
+        f = remove_ringing(wheel, zeta_site, sensor, t, f, win)
     f = _clip(f, P)
     cost_round = float(sum(np.sum((f[i0:i1] - P) ** 2) for i0, i1 in win))
     windows = tuple((float(t[i0]), float(t[i1 - 1])) for i0, i1 in win)
@@ -526,6 +863,7 @@ def estimate_flat(
             windows,
             (),
             time.perf_counter() - start,
+            noise_level=noise,
         )
     kept_a = np.array(kept)
     t_speed = TWO_PI * R / speed
@@ -546,14 +884,10 @@ def estimate_flat(
         RailTables(RailProfile.flat()),
         turns=turns,
         period_band=band,
+        max_earlier_turns=options.max_earlier_turns,
+        lead=lead,
     )
     grid = tuple(sorted(options.lengths))
-    f_site = wheel.foundation
-    zetas: tuple[float, ...] = (0.0,)
-    zeta_site = 0.0
-    if f_site.is_compliant:
-        zeta_site = damping_ratio_of(f_site)
-        zetas = tuple(sorted({round(zeta_site, 6), *options.damping_ratios}))
     # 1. coarse: every kind, length and damping ratio of the grids
     for kind in options.kinds:
         for z in zetas:
@@ -567,8 +901,9 @@ def estimate_flat(
         best_of_kind[kind] = _refine(
             prob, kind, cur.length, cur.zeta, zetas, grid, options, options.refine_rounds
         )
+    if "rounded_flat" in best_of_kind:
+        best_of_kind["rounded_flat"] = _refine_depth(prob, best_of_kind["rounded_flat"], options)
     best = min(best_of_kind.values(), key=lambda c: c.cost)
-    at_zeta = [c for c in prob.evaluated.values() if c.zeta == best.zeta]
     n_eff = n * (min(1.0, 2.0 * sensor.cutoff_hz / rate) if sensor.cutoff_hz else 1.0)
     n_eff = max(n_eff, 1.0)
     significance = (cost_round - best.cost) / (best.cost / n_eff) if best.cost > 0 else math.inf
@@ -578,6 +913,7 @@ def estimate_flat(
     # and a worn one ~25 % longer can make the same windows), each walked out from its best
     # length at its damping until the cost passes j_max
     lo, hi = best.length, best.length
+    interval_kinds: list[FlatKind] = []
     for cand in best_of_kind.values():
         if cand.cost > j_max and cand is not best:
             continue
@@ -586,16 +922,19 @@ def estimate_flat(
                 ln = cand.length * (1.0 + direction * step)
                 if not 0.002 <= ln <= 2.0 * grid[-1]:
                     break
-                if prob.evaluate(cand.kind, ln, cand.zeta).cost > j_max:
+                if prob.evaluate(cand.kind, ln, cand.zeta, cand.depth_factor).cost > j_max:
                     break
         points = [
             (c.length, c.cost)
             for c in prob.evaluated.values()
-            if c.zeta == cand.zeta and c.kind == cand.kind
+            if c.zeta == cand.zeta and c.kind == cand.kind and c.depth_factor == cand.depth_factor
         ]
         k_lo, k_hi = _interval(points, j_max, cand.length)
         lo, hi = min(lo, k_lo), max(hi, k_hi)
-    at_zeta = [c for c in prob.evaluated.values() if c.zeta == best.zeta]
+        interval_kinds.append(cand.kind)
+    at_zeta = [
+        c for c in prob.evaluated.values() if c.zeta == best.zeta and c.depth_factor == 1.0
+    ]
     lo *= 1.0 - options.speed_uncertainty
     hi *= 1.0 + options.speed_uncertainty
     # the detection floor: above ~75 km/h a few µm of unknown roughness excite as much dynamic
@@ -610,11 +949,7 @@ def estimate_flat(
     if found:
         phases = np.exp(1j * (-(v * best.centres) / R))
         phase = float(np.angle(np.mean(phases))) % TWO_PI
-        flat = (
-            Flat.ideal(R, best.length, phase)
-            if best.kind == "flat"
-            else Flat.rounded(R, best.length, None, phase)
-        )
+        flat = make_flat(R, best.kind, best.length, best.depth_factor).with_phase(phase)
     profile = tuple(
         (c.kind, c.length, c.cost) for c in sorted(at_zeta, key=lambda c: (c.kind, c.length))
     )
@@ -634,4 +969,7 @@ def estimate_flat(
         windows,
         profile,
         time.perf_counter() - start,
+        best.depth_factor,
+        tuple(interval_kinds),
+        noise,
     )

@@ -29,9 +29,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
-from scipy import signal
 
 __all__ = ["FINE_RATE_MIN", "SensorModel"]
 
@@ -70,9 +70,9 @@ class SensorModel:
                 f"sensor: cut-off {self.cutoff_hz:g} Hz is not below the Nyquist limit of {rate:g} Hz"
             )
         sos, zi_unit = _butter(self.order, float(self.cutoff_hz), float(rate))
-        zi = zi_unit * f[0]
-        out, _ = signal.sosfilt(sos, f, zi=zi)
-        return np.asarray(out, dtype=np.float64)
+        out = np.empty(f.size)
+        _sosfilt(sos, zi_unit * float(f[0]), np.ascontiguousarray(f, dtype=np.float64), out)
+        return out
 
     def measure(
         self, t: NDArray[np.float64], f: NDArray[np.float64], t_out: NDArray[np.float64]
@@ -90,13 +90,59 @@ _SOS_CACHE: dict[tuple[int, float, float], tuple[NDArray[np.float64], NDArray[np
 def _butter(
     order: int, cutoff: float, rate: float
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """(second-order sections, their steady-state initial conditions for a unit input)."""
+    """(second-order sections [b0, b1, b2, 1, a1, a2], their steady-state states for a
+    unit input) of a digital Butterworth low-pass of ``order`` at ``cutoff`` Hz.
+
+    The analogue prototype's poles p = ω·exp(iπ(2k + order + 1)/(2·order)) at the
+    pre-warped ω = 2·rate·tan(π·cutoff/rate), mapped by the bilinear transform
+    z = (2·rate + p)/(2·rate - p), all zeros at z = -1 (what ``scipy.signal.butter`` does,
+    written out so that the diagnosis does not import ``scipy.signal``, half a second; one
+    pole pair per section, each section scaled to unit gain at DC, so the chain's gain is 1
+    exactly; ``tests/test_diagnosis_sensor.py`` compares it with SciPy's).
+    """
     key = (order, cutoff, round(rate, 6))
     got = _SOS_CACHE.get(key)
     if got is None:
-        sos = np.asarray(signal.butter(order, cutoff, btype="low", output="sos", fs=rate))
-        got = (sos, np.asarray(signal.sosfilt_zi(sos)))
+        fs2 = 2.0 * rate
+        w = fs2 * math.tan(math.pi * cutoff / rate)
+        rows: list[list[float]] = []
+        for k in range(order // 2):  # the upper half-plane pole of each conjugate pair
+            p = w * complex(np.exp(1j * math.pi * (2 * k + order + 1) / (2 * order)))
+            z = (fs2 + p) / (fs2 - p)
+            a1, a2 = -2.0 * z.real, abs(z) ** 2
+            g = (1.0 + a1 + a2) / 4.0
+            rows.append([g, 2.0 * g, g, 1.0, a1, a2])
+        if order % 2:  # the real pole -ω
+            z1 = (fs2 - w) / (fs2 + w)
+            g = (1.0 - z1) / 2.0
+            rows.append([g, g, 0.0, 1.0, -z1, 0.0])
+        sos = np.array(rows, dtype=np.float64)
+        # transposed direct form II in steady state at a unit input (each section's output 1)
+        zi = np.empty((sos.shape[0], 2))
+        zi[:, 1] = sos[:, 2] - sos[:, 5]
+        zi[:, 0] = sos[:, 1] - sos[:, 4] + zi[:, 1]
+        got = (sos, zi)
         if len(_SOS_CACHE) > 64:
             _SOS_CACHE.clear()
         _SOS_CACHE[key] = got
     return got
+
+
+@numba.njit(cache=True, nogil=True)
+def _sosfilt(
+    sos: NDArray[np.float64], zi: NDArray[np.float64], x: NDArray[np.float64],
+    out: NDArray[np.float64],
+) -> None:
+    """``out`` = the cascade of second-order sections applied to ``x`` from the states ``zi``
+    (transposed direct form II, as ``scipy.signal.sosfilt``)."""
+    ns = sos.shape[0]
+    z0 = zi[:, 0].copy()
+    z1 = zi[:, 1].copy()
+    for i in range(x.size):
+        v = x[i]
+        for s in range(ns):
+            y = sos[s, 0] * v + z0[s]
+            z0[s] = sos[s, 1] * v - sos[s, 4] * y + z1[s]
+            z1[s] = sos[s, 2] * v - sos[s, 5] * y
+            v = y
+        out[i] = v

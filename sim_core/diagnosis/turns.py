@@ -47,11 +47,13 @@ PHASES = 720
 @dataclass(frozen=True)
 class Anchors:
     """One anchor time (s) per turn whose disturbance peak lies inside the record, the turn
-    period (s) they imply, and how far the disturbance stands out (peak / median)."""
+    period (s) they imply, how far the disturbance stands out (peak / median), and how long
+    before its anchor a turn's first impact may be (``lead``, s: ``first_impact_lead``)."""
 
     times: NDArray[np.float64]
     period: float
     prominence: float
+    lead: float = 0.0
 
 
 def disturbance(t: NDArray[np.float64], f: NDArray[np.float64], load: float) -> NDArray[np.float64]:
@@ -102,4 +104,39 @@ def find_anchors(
             period = float(np.polyfit(k, times, 1)[0])
     med = float(np.median(g))
     peak = float(np.min(g[np.searchsorted(t, times)])) if times.size else 0.0
-    return Anchors(times, period, peak / med if med > 0 else math.inf)
+    lead = first_impact_lead(t, g, times, period)
+    return Anchors(times, period, peak / med if med > 0 else math.inf, lead)
+
+
+LEAD_SHARE = 0.5
+"""A peak of the disturbance may be a turn's first impact from this share of its largest."""
+
+LEAD_BACK = (0.3, 0.04)
+"""How far before a turn's largest peak its first impact is looked for: this fraction of a
+turn, at most this many s (a lightly damped wheel bounces for tens of ms after an impact)."""
+
+
+def first_impact_lead(
+    t: NDArray[np.float64], g: NDArray[np.float64], times: NDArray[np.float64], period: float
+) -> float:
+    """s: how long before its anchor (the turn's largest peak) a turn's first impact may be.
+
+    On a lightly damped foundation a flat's first impact sets the wheel bouncing for tens
+    of ms and a later bounce can hit harder than the first impact: the largest peak is then
+    not where the flat is, and a window ending there can miss the flat's dip altogether.
+    The first impact is among the peaks of the disturbance that reach ``LEAD_SHARE`` of the
+    turn's largest, up to ``LEAD_BACK`` before it; the lead is the earliest of those over
+    all turns, so that the windows reach back to it and the fit places the flat.
+    """
+    back = min(LEAD_BACK[0] * period, LEAD_BACK[1])
+    lead = 0.0
+    for a in times:
+        ia = min(int(np.searchsorted(t, a)), t.size - 1)
+        lo = max(int(np.searchsorted(t, a - back)), 1)
+        hi = min(ia + 1, t.size - 1)
+        seg = g[lo - 1 : hi + 1]
+        peak = (seg[1:-1] >= seg[:-2]) & (seg[1:-1] > seg[2:]) & (seg[1:-1] >= LEAD_SHARE * g[ia])
+        at = np.nonzero(peak)[0]
+        if at.size:
+            lead = max(lead, float(a - t[lo + at[0]]))
+    return lead

@@ -1,0 +1,197 @@
+"""``railtwin warm``: compile the physics into numba's cache, the independent parts in parallel.
+
+    railtwin warm [--site examples/site.toml] [--jobs N]
+    python -m service.cli.warm [...]                  # the same, without the entry point
+
+A first start otherwise compiles the whole physics in the service's one worker
+process, one function after the other (minutes on a cold cache). The compiled
+code falls into groups that share few compiled functions: the integrator
+(``sim_core.integrator.integrate`` and the kernels it calls) and the constraint's
+tabulation paths (``warm_up_constraint``). This command compiles them in ``--jobs``
+processes at once (default: 2, or one per CPU if fewer; ``GROUPS`` says who compiles
+what), each writing its functions to numba's cache (``NUMBA_CACHE_DIR``; the
+Makefile points it at ``.venv/numba-cache``), then runs the service's own
+warm-up for ``--site`` once, which loads them from the cache and compiles what is
+left (the site's own paths, the dent press, the diagnosis's fit).
+
+``make venv`` runs it after installing, so that ``railtwin serve``, ``make demo``
+and ``make test`` all start from a filled cache. Running it again on a warm cache
+only loads (seconds). Each process writes a function's cache entry whole (numba
+writes a file aside, then renames it), and a function compiled by both groups is
+simply written twice with the same content.
+"""
+
+from __future__ import annotations
+
+import argparse
+import concurrent.futures
+import multiprocessing
+import os
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[2]
+DEFAULT_SITE = ROOT / "examples" / "site.toml"
+
+GROUPS: dict[str, tuple[str, ...]] = {
+    "integrator": ("passage",),
+    "events+constraint": ("events", "constraint"),
+}
+"""What each process compiles, in order. Numba compiles a function's callees first, each
+loading from the cache if it is there: the ``passage`` step compiles ``integrate`` from the
+top (the step loop, the Runge–Kutta steps, ...), while the other process compiles the
+integrator's event and record kernels (which the loop reaches last) and then the
+constraint's paths, so that the two take about as long and meet without compiling the
+same function twice."""
+
+
+def warm_group(steps: tuple[str, ...]) -> float:
+    """Compile (or load) the ``steps`` of one group in this process; returns its wall time (s)."""
+    start = time.perf_counter()
+    for step in steps:
+        if step == "passage":
+            _warm_integrator()
+        elif step == "events":
+            _warm_integrator_kernels()
+        elif step == "constraint":
+            from sim_core.constraint import warm_up_constraint
+
+            warm_up_constraint()
+        else:
+            raise ValueError(f"unknown warm-up step {step!r}")
+    return time.perf_counter() - start
+
+
+def _warm_integrator() -> None:
+    """One short passage on a flat rail and a compliant foundation.
+
+    ``integrate`` is compiled whole on its first call (every mode, every event, both
+    foundations, every contact law: one signature), so one passage compiles it all.
+    """
+    import numpy as np
+
+    from sim_core.constraint import flat_constraint
+    from sim_core.contact_laws import ContactLaw, ContactModel
+    from sim_core.materials import Material, derive
+    from sim_core.passage import Foundation, PassageSpec, simulate_passage
+
+    d = derive(Material(2.14e11, 0.3), radius=0.46, load=60e3, mass=600.0)
+    spec = PassageSpec(mass=600.0, load=60e3, speed=30.0, duration=0.002, sample_rate=1e4,
+                       contact=ContactModel(ContactLaw.HERTZ, d.contact_coefficient),
+                       foundation=Foundation.compliant(150.0, 2e8, 7e4))
+    out = simulate_passage(flat_constraint(), spec)
+    if not np.isfinite(out.force).all():
+        raise RuntimeError("the warm-up passage gave a non-finite force")
+
+
+def _warm_integrator_kernels() -> None:
+    """Compile the integrator's event and record kernels, without running them, for the
+    signature the step loop calls them with, the last it reaches first."""
+    import numba
+    import numpy as np
+
+    from sim_core import integrate_events as ev
+    from sim_core import integrate_records as rec
+    from sim_core import integrator as it
+    from sim_core.constraint import flat_constraint
+    from sim_core.integrate_model import force_rate
+    from sim_core.integrate_types import Params, Work, table_of
+
+    tab = table_of(flat_constraint())
+    par = Params.build(law=0, c=1e11, f_y=0.0, d_y=0.0, theta=0.0, hyst=0.0, mass=600.0,
+                       load=6e4, speed=30.0, compliant=False, f_mass=1.0, f_stiff=0.0,
+                       f_damp=0.0, rtol=1e-8, atol_y=1e-12, atol_v=1e-9, hmax_contact=1e-4,
+                       c2max=0.0, track_dents=False, dent_dx=1e-4)
+    w = Work(np.zeros((13, 4)), np.zeros(13), np.zeros(4), np.zeros(4), np.zeros((2, 8)),
+             np.zeros(128), np.zeros(128))
+    y, coef, rows = np.zeros(4), w.coef, np.zeros((8, 3))
+    i, f, b = 0, 0.0, False
+    calls: list[tuple[Any, tuple[Any, ...]]] = [
+        (it.step_after_event, (i, f, f, f, f, coef, par, tab, i)),
+        (it.land_on_event, (i, f, y, par, tab, i)),
+        (rec.record_dents, (rows, i, f, f, coef, par, tab, i)),
+        (force_rate, (f, f, f, coef, par, tab, b, i)),
+        (ev.find_root, (i, f, f, f, f, f, f, f, coef, par, tab, f, f, i, i)),
+        (ev.first_crossing, (i, f, f, coef, par, tab, i, i)),
+        (ev.detect_in_flight, (f, f, w, par, tab, y, i)),
+    ]
+    for dispatcher, args in calls:
+        dispatcher.compile(tuple(numba.typeof(a) for a in args))
+
+
+def warm(site_file: Path, jobs: int, out: Any = sys.stdout) -> float:
+    """Compile every group in ``jobs`` processes, then the site's warm-up here; total s."""
+    start = time.perf_counter()
+    if jobs > 1:
+        ctx = multiprocessing.get_context("spawn")  # fresh interpreters: nothing compiled yet
+        with concurrent.futures.ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
+            futures = {g: pool.submit(warm_group, steps) for g, steps in GROUPS.items()}
+            for g, fut in futures.items():
+                print(f"railtwin warm: {g} compiled in {fut.result():.1f} s", file=out, flush=True)
+    else:
+        for g, steps in GROUPS.items():
+            print(f"railtwin warm: {g} compiled in {warm_group(steps):.1f} s", file=out,
+                  flush=True)
+    t0 = time.perf_counter()
+    _warm_site(site_file)
+    print(f"railtwin warm: site {site_file.name} warmed up in {time.perf_counter() - t0:.1f} s",
+          file=out, flush=True)
+    return time.perf_counter() - start
+
+
+def _warm_site(site_file: Path) -> None:
+    """What ``railtwin serve`` runs before it is ready, once (``SitePhysics.warm_up`` and the
+    diagnosis's)."""
+    from service.physics.diagnosis import Diagnoser
+    from service.physics.site_physics import SitePhysics
+    from service.wire.site import load_site
+
+    site = load_site(site_file)
+    physics = SitePhysics(site)
+    physics.warm_up()
+    Diagnoser(site, physics=physics).warm_up()
+
+
+def _default_jobs() -> int:
+    return max(1, min(len(GROUPS), os.cpu_count() or 1))
+
+
+def add_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--site", type=Path, default=DEFAULT_SITE,
+                   help="site file whose warm-up runs last (default: examples/site.toml)")
+    p.add_argument("--jobs", type=int, default=_default_jobs(),
+                   help=f"processes compiling at once (default: {_default_jobs()})")
+
+
+def handler(args: argparse.Namespace) -> int:
+    if args.jobs < 1:
+        print("railtwin warm: --jobs must be >= 1", file=sys.stderr)
+        return 2
+    if not args.site.is_file():
+        print(f"railtwin warm: no site file {args.site}", file=sys.stderr)
+        return 2
+    cache = os.environ.get("NUMBA_CACHE_DIR", "numba's default (__pycache__ beside the sources)")
+    print(f"railtwin warm: compiling the physics into {cache} ({args.jobs} process"
+          f"{'es' if args.jobs > 1 else ''})", flush=True)
+    total = warm(args.site, args.jobs)
+    print(f"railtwin warm: done in {total:.1f} s", flush=True)
+    return 0
+
+
+def register(subparsers: Any) -> None:
+    p = subparsers.add_parser("warm", help="compile the physics into numba's cache (parallel)",
+                              description=__doc__.split("\n")[0])
+    add_arguments(p)
+    p.set_defaults(func=handler)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(prog="railtwin warm", description=__doc__.split("\n")[0])
+    add_arguments(p)
+    return handler(p.parse_args(argv))
+
+
+if __name__ == "__main__":
+    sys.exit(main())
