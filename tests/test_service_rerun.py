@@ -250,3 +250,29 @@ def test_si_units_with_the_unit_in_every_name(tmp_path: Path) -> None:
     assert len(names) == 5
     assert all("[N]" in n or "[m]" in n for n in names), names
     assert not any(u in t for t in texts + names + list(units.values()) for u in ("kN", "µm"))
+
+
+def test_a_diagnosis_lies_at_its_passage_time_recorded_in_this_run_or_not(tmp_path: Path) -> None:
+    """Beside its wheel when the passage was recorded in this run (its time from there);
+    otherwise at the time the diagnosis echoes (``Diagnosis.timestamp``)."""
+    from schemas.diagnosis import Diagnosis
+
+    path = tmp_path / "run.rrd"
+    rec = RerunRecording(path, "s")
+    r = result("p0", timestamp=T0)
+    rec.log_passage(r)
+    x = np.linspace(0.0, 2.0, 11)
+    t = x / 40.0
+    for pid, stamp in (("p0", None), ("elsewhere", T0 + 50.0)):
+        diag = Diagnosis(site_id="s", passage_id=pid, flat=None, verdict="ok", reasons=[],
+                         peak_force_measured=6e4, peak_force_fit=6e4, fit_rms=1.0,
+                         peak_force_at_line_speed=None, wall_time=0.0, timestamp=stamp)
+        rec.log_diagnosis(diag, t, np.full(11, 6e4), np.full(11, 6e4), x, np.empty(0))
+    rec.close()
+    measured = rrd_columns(path)[entities("s")["measured"]]
+    for d, stamp, passage in ((0, T0, 0), (1, T0 + 50.0, -1)):
+        rows = {k: v[measured["diagnosis"] == d] for k, v in measured.items()}
+        np.testing.assert_allclose(rows["time"] / 1e9, stamp + t, rtol=0, atol=1e-6)
+        assert set(rows["passage_time"]) == {round(stamp * 1e9)}
+        assert set(rows["passage"]) == {passage}  # -1: not a passage of this run
+        np.testing.assert_array_equal(rows["values"], np.full(11, 6e4))  # N

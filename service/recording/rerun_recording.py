@@ -41,6 +41,8 @@ Time lines:
   default blueprint's plots show the ±500 m around the time cursor on it, i.e.
   exactly one wheel: click a line of the ``Passages`` log (or step the cursor)
   to see that wheel, named beside the force plot.
+- diagnoses are on ``time`` and ``passage_time`` too, at their passage's time (as
+  recorded in this run, else ``Diagnosis.timestamp``);
 - ``diagnosis`` and ``diagnosis_mm``: the same for diagnoses (index ``d``,
   ``d·10⁶ + mm``). A diagnosis whose passage was recorded in this run (among
   the last ``KEPT_PASSAGE_INDEXES``) is drawn in that passage's slot of
@@ -400,7 +402,9 @@ class RerunRecording:
         e = self.entities
         d = self._diagnoses
         found = self._index_of.get(diag.passage_id)
-        index, stamp = found if found is not None else (None, None)
+        index = None if found is None else found[0]
+        # the passage's own time: as recorded in this run, else as the diagnosis echoes it
+        stamp = found[1] if found is not None else diag.timestamp
 
         def indexes(positions: NDArray[np.float64]) -> list[rr.TimeColumn]:
             n = len(positions)
@@ -408,7 +412,11 @@ class RerunRecording:
                     rr.TimeColumn(DIAGNOSIS_TIMELINE, sequence=np.full(n, d, dtype=np.int64))]
             if index is not None:
                 cols += [rr.TimeColumn(X_TIMELINE, sequence=x_index(positions, index)),
-                         *self._slot(index, n, stamp, positions / speed)]
+                         rr.TimeColumn(PASSAGE_TIMELINE,
+                                       sequence=np.full(n, index, dtype=np.int64))]
+            if stamp is not None:
+                cols += [rr.TimeColumn(PASSAGE_TIME_TIMELINE, timestamp=np.full(n, stamp)),
+                         rr.TimeColumn(TIME_TIMELINE, timestamp=stamp + positions / speed)]
             return cols
 
         at = indexes(x)
@@ -428,7 +436,11 @@ class RerunRecording:
         self.rec.set_time(DIAGNOSIS_X_TIMELINE, sequence=d * SLOT_MM)
         self.rec.set_time(DIAGNOSIS_TIMELINE, sequence=d)
         if index is not None:
-            self._set_times(index, stamp)
+            self.rec.set_time(X_TIMELINE, sequence=index * SLOT_MM)
+            self.rec.set_time(PASSAGE_TIMELINE, sequence=index)
+        if stamp is not None:
+            self.rec.set_time(PASSAGE_TIME_TIMELINE, timestamp=stamp)
+            self.rec.set_time(TIME_TIMELINE, timestamp=stamp)
         self.rec.log(e["verdict"], rr.TextLog(
             f"{diag.passage_id}: {diag.verdict.upper()}, {what}, measured peak "
             f"{si(diag.peak_force_measured, 'N')}, fit peak {si(diag.peak_force_fit, 'N')}"
