@@ -114,9 +114,9 @@ class ProcessRecorder:
         self.failures = 0
         self.last_failure: str | None = None
         self.not_drawn = 0
+        """Passages, dents and diagnoses not drawn in Rerun because the child was behind."""
         self.not_sampled = 0
         """Results whose per-sample channel was not written because the child was behind."""
-        """Passages, dents and diagnoses not drawn in Rerun because the child was behind."""
         self._mcap_path: str | None = None
         self._rrd_path: str | None = None
         self._closed = False
