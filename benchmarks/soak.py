@@ -15,7 +15,8 @@
    1 000 passages, 127 MB over the second half of 20 000).
 2. **kill -9**: a second service gets ``--kill-after`` passages at once; after 1.5 s every
    one of its processes (service, physics worker, recorder) is killed with SIGKILL. Then
-   ``railtwin recover`` turns its cut MCAP and its input journal into a finished log,
+   ``railtwin recover`` turns its cut MCAP and what is left of its input journal (the
+   parts not yet in a flushed MCAP chunk) into a finished log,
    and the report says how many of the inputs sent and of the results received are in it.
 
 It runs for minutes (not part of ``make test``; the tests hold the same properties on
@@ -141,11 +142,13 @@ def burst(n: int, rounds: int, tmp: Path) -> dict[str, Any]:
         pub = declare_passage_publisher(session, keys)
         wait_matching(pub, 30.0)
         samples: list[tuple[int, dict[str, float]]] = []
+        journal: list[int] = []  # bytes of the input journal on disk, every 0.5 s
         stop = threading.Event()
 
         def watch() -> None:
             while not stop.wait(0.5):
                 samples.append((answered_count(collector), rss_by_role(root)))
+                journal.append(journal_bytes(tmp / "burst"))
 
         start_rss = rss_by_role(root)
         watcher = threading.Thread(target=watch, daemon=True)
@@ -169,6 +172,7 @@ def burst(n: int, rounds: int, tmp: Path) -> dict[str, Any]:
             results = sum(o.result_at is not None for o in collector.outcomes.values())
             rejected = len(collector.errors)
     total = n * rounds
+    journal_left = journal_bytes(tmp / "burst")  # the service has stopped
     series = rss_series(samples, total, points=10)
     half = (round_end[len(round_end) // 2 - 1] if len(round_end) >= 2
             else next((m for a, m in samples if a >= total // 2), start_rss))
@@ -181,7 +185,18 @@ def burst(n: int, rounds: int, tmp: Path) -> dict[str, Any]:
             "rss_after_each_round_mb": [rounded(m) for m in round_end],
             "rss_every_tenth_mb": series,
             "growth_second_half_mb": round(sum(end.values()) - sum(half.values()), 1),
+            "journal_peak_mb": round(max(journal, default=0) / 2**20, 1),
+            "journal_after_stop_bytes": journal_left,
             "recorder_notes": [line for line in svc.lines if "recording failures" in line]}
+
+
+def journal_bytes(directory: Path) -> int:
+    """Bytes of the input journal's parts in ``directory`` (parts come and go)."""
+    total = 0
+    for p in directory.glob("*.journal"):
+        with contextlib.suppress(OSError):
+            total += p.stat().st_size
+    return total
 
 
 def rounded(m: dict[str, float]) -> dict[str, float]:
@@ -231,6 +246,7 @@ def kill_mid_stream(n: int, tmp: Path) -> dict[str, float]:
     d = tmp / "kill"
     logs = sorted(d.glob("*.mcap"))
     journals = sorted(d.glob("*.journal"))
+    journal_mb = sum(p.stat().st_size for p in journals) / 2**20
     cut_inputs = sum(1 for p in logs for m in salvage(p) if "/passage" in m.topic)
     out = d / "recovered.mcap"
     report = recover([*logs, *journals], out)
@@ -243,6 +259,7 @@ def kill_mid_stream(n: int, tmp: Path) -> dict[str, float]:
     return {"sent": n, "processes_killed": len(pids), "results_received": len(got),
             "inputs_in_cut_mcap": cut_inputs, "inputs_recovered": len(inputs),
             "inputs_from_journal_only": report.from_journal,
+            "journal_parts_left": len(journals), "journal_left_mb": round(journal_mb, 1),
             "results_received_not_in_log": len(lost_results),
             "of_which_received_in_last_s_before_kill": sum(killed_at - t <= 1.0 for t in late),
             "answered_inputs_missing_from_log": len(got - inputs)}
@@ -274,6 +291,13 @@ def main() -> int:
             return 0
         k = kill_mid_stream(a.kill_after, tmp)
         print("kill -9:", json.dumps(k, indent=1), flush=True)
+        valid = sum(1 for i in range(a.kill_after) if i % 20 != 19)
+        if k["results_received_not_in_log"] or k["answered_inputs_missing_from_log"]:
+            print("soak FAILED: the recovered log lacks results or inputs the service had "
+                  "answered", flush=True)
+            return 1
+        print(f"soak: kill -9 recovered {k['inputs_recovered']:.0f} of {valid} valid inputs "
+              f"sent and every result received", flush=True)
     return 0
 
 

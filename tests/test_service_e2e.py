@@ -247,6 +247,9 @@ def test_mcap_holds_every_message_and_validates(first_run: Run) -> None:
         f"{p}/passage": 5, f"{p}/passage/rejected": 4, f"{p}/force": 4,
         f"{p}/indentation": 4, f"{p}/result": 4, f"{p}/error": 5,
         f"{p}/log": 5,  # each error again as a foxglove.Log, for Foxglove's Log panel
+        # every sample of every result, one message each (Foxglove plots them against time)
+        f"{p}/samples": sum(len(o.result.x) for o in first_run.collector.outcomes.values()
+                            if o.result is not None),
     }
     for m in logged:
         decode(m)  # validates against the channel's schema
@@ -256,6 +259,11 @@ def test_mcap_holds_every_message_and_validates(first_run: Run) -> None:
     results = {r.passage_id: r for r in (decode(m) for m in logged if m.topic == f"{p}/result")}
     for pid, o in first_run.collector.outcomes.items():
         assert o.result == results[pid]  # what went over Zenoh is what was logged
+    for pid, r in results.items():  # each sample at its own time: the passage's + x/speed
+        got = [(m.log_time_ns, decode(m)) for m in logged
+               if m.topic == f"{p}/samples" and decode(m).passage_id == pid]
+        np.testing.assert_allclose([s.force for _, s in got], r.force, rtol=1e-6, atol=0)
+        assert [t for t, _ in got] == [round((r.timestamp + x / r.speed) * 1e9) for x in r.x]
     logged_inputs = [m for m in logged if m.topic.startswith(f"{p}/passage")]
     assert logged_inputs == sorted(logged_inputs, key=lambda m: m.log_time_ns)
 
@@ -270,10 +278,10 @@ def test_rrd_has_every_passage(first_run: Run) -> None:
     for pid, o in first_run.collector.outcomes.items():
         r = o.result
         assert r is not None
-        for role, values in (("force", np.asarray(r.force) * 1e-3),
-                             ("indentation", np.asarray(r.indentation) * 1e6),
-                             ("y_c", np.asarray(r.y_c) * 1e6),
-                             ("y_ck", np.asarray(r.y_ck) * 1e6)):
+        for role, values in (("force", np.asarray(r.force)),  # SI: N and m
+                             ("indentation", np.asarray(r.indentation)),
+                             ("y_c", np.asarray(r.y_c)),
+                             ("y_ck", np.asarray(r.y_ck))):
             np.testing.assert_array_equal(of_passage(cols[e[role]], index[pid])["values"],
                                           values)
     assert e["profile"] in cols

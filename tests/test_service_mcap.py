@@ -5,11 +5,18 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 from mcap.reader import make_reader
 from mcap.stream_reader import StreamReader
 
-from schemas.messages import RejectedInput, ServiceError, WheelPassage, encoding_schema
-from service.recording.mcap_log import McapLog, decode, read_log
+from schemas.messages import (
+    PassageResult,
+    RejectedInput,
+    ServiceError,
+    WheelPassage,
+    encoding_schema,
+)
+from service.recording.mcap_log import LoggedMessage, McapLog, decode, read_log
 
 PASSAGE = WheelPassage(
     passage_id="t1-a00-r", train_id="t1", axle_index=0, side="right", timestamp=1.7e9,
@@ -89,3 +96,42 @@ def test_errors_and_verdicts_also_go_to_a_foxglove_log_channel(tmp_path: Path) -
     assert m.topic == "railtwin/s/log" and m.schema_name == "foxglove.Log"
     logged = decode(m)
     assert isinstance(logged, foxglove.Log) and logged.level == foxglove.ERROR
+
+
+def test_every_sample_of_a_result_is_plottable_against_time(tmp_path: Path) -> None:
+    """Foxglove's Plot panel plots against the messages' time: one message per sample on
+    ``.../samples``, at the sample's own time (log and publish time, ``timestamp`` field);
+    the whole-passage result stays. Skipped while the recorder is behind."""
+    from service.recording import foxglove
+    from service.recording.recorder_process import ProcessRecorder, RecordingPlan
+    from tests.test_service_rerun import result
+
+    r = result("p1", n=40).model_copy(update={"timestamp": 1_780_000_000.25})
+    data = r.model_dump_json().encode()
+    for behind, name in ((64 * 2**20, "fed"), (0, "behind")):
+        d = tmp_path / name
+        rec = ProcessRecorder(RecordingPlan(d, "run", "s", rerun=False,
+                                            samples_backlog_bytes=behind))
+        rec.message("railtwin/s/result", PassageResult, data, 1_780_000_009_000_000_000)
+        rec.close()
+        with sorted(d.glob("*.mcap"))[0].open("rb") as f:
+            msgs = list(make_reader(f).iter_messages(log_time_order=False))
+        results = [m for _, c, m in msgs if c.topic == "railtwin/s/result"]
+        assert len(results) == 1 and results[0].data == data
+        rows = [(s, m) for s, c, m in msgs if c.topic == "railtwin/s/samples"]
+        if behind == 0:
+            assert rows == [] and rec.not_sampled == 1
+            continue
+        assert len(rows) == 40 and rec.not_sampled == 0
+        want = [round((r.timestamp + x / r.speed) * 1e9) for x in r.x]
+        assert [m.log_time for _, m in rows] == want
+        assert [m.publish_time for _, m in rows] == want
+        assert {s.name for s, _ in rows} == {foxglove.SAMPLE_SCHEMA_NAME}
+        got = [decode(LoggedMessage("railtwin/s/samples", s.name, m.log_time, m.data))
+               for s, m in rows]
+        assert all(isinstance(g, foxglove.PassageSample) for g in got)
+        for name in ("force", "indentation", "x"):  # 7 significant digits: a plot's precision
+            np.testing.assert_allclose([getattr(g, name) for g in got], getattr(r, name),
+                                       rtol=1e-6, atol=0)
+        assert {g.passage_id for g in got} == {"p1"}
+        assert [g.timestamp.sec * 10**9 + g.timestamp.nsec for g in got] == want

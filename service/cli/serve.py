@@ -243,6 +243,9 @@ def _serve(args: argparse.Namespace, site: SiteConfig, cfg: zenoh.Config, listen
     stamp = time.strftime("%Y%m%d-%H%M%S")
     # unique per run, not per second: two services started together keep both logs
     stem = f"railtwin-{site.site_id}-{stamp}-{os.getpid()}{secrets.token_hex(2)}"
+    # every input on disk before it is queued: recover merges it into a cut MCAP; the
+    # recorder tells the journal what a flushed MCAP chunk holds, and it lets that go
+    journal = None if args.no_mcap else InputJournal(args.recordings / f"{stem}-inputs.journal")
     recorder: ProcessRecorder | None = None
     if not (args.no_mcap and args.no_rerun):
         # MCAP and Rerun are written by a child process, off this interpreter's GIL
@@ -253,10 +256,8 @@ def _serve(args: argparse.Namespace, site: SiteConfig, cfg: zenoh.Config, listen
             keep_bytes=int(args.keep_gb * 2**30) if args.keep_gb > 0 else None,
             metadata=(("railtwin_version", package_version()), ("site", site.model_dump_json()),
                       ("site_file", str(args.site)), ("started_at", stamp)),
-        ))
+        ), journal=journal)
 
-    # every input on disk before it is queued: recover merges it into a cut MCAP
-    journal = None if args.no_mcap else InputJournal(args.recordings / f"{stem}-inputs.journal")
     # the diagnoses made, for catch-up queries: beside the rail state, else in memory
     state_dir = None if args.no_state else (args.state or args.recordings / "state")
     try:
@@ -266,6 +267,8 @@ def _serve(args: argparse.Namespace, site: SiteConfig, cfg: zenoh.Config, listen
         log.error(f"diagnoses store: {exc}")
         if recorder is not None:
             recorder.close()
+        if journal is not None:
+            journal.close()
         return 2
     try:
         try:

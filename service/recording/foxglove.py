@@ -1,6 +1,21 @@
-"""Foxglove's well-known ``foxglove.Log`` on a channel of its own, so that the twin's errors
-and verdicts show in Foxglove's Log panel.
+"""Foxglove's conventions: ``foxglove.Log`` for errors and verdicts, one message per sample
+for the series, so that Foxglove shows them as its users expect.
 
+**Samples.** Foxglove's Plot panel plots a message path against the messages' timestamps
+(log time by default, or a timestamp field of the message); a whole-passage message
+(``.../result``, ``.../force``) can only be drawn as x against value of the latest one.
+(Foxglove's own schemas have no scalar sample, so the schema is railtwin's.)
+So for every ``PassageResult`` it logs, the recorder also writes one ``PassageSample`` per
+sample on ``railtwin/<site>/samples``: log time and publish time = the sample's own time
+(the passage's ``timestamp`` + x/speed), and the same time in a ``timestamp`` field
+(Foxglove's ``{sec, nsec}``), with the passage id, x (m), force (N) and indentation (m).
+``/railtwin/<site>/samples.force`` then plots every wheel's force against time, across
+passages and files. Values have 7 significant digits. It costs the recorder ~10 ms a passage
+and the MCAP ~40 bytes a sample (zstd; ~55 kB a wheel of ``make demo``, 1 351 samples),
+so it is skipped, like a Rerun drawing, while the recorder is behind
+(``RecordingPlan.samples_backlog_bytes``, 16 MB): the result holds the same series.
+
+**Log.**
 For every ``ServiceError`` and ``Diagnosis`` it logs, the recorder also writes a
 ``foxglove.Log`` on ``railtwin/<site>/log`` (JSON, schema named ``foxglove.Log``): the
 error's kind and message (level WARNING; ERROR for ``simulation_failed``), or the wheel's
@@ -10,12 +25,16 @@ for ``remove``). The messages themselves stay on their own channels.
 
 from __future__ import annotations
 
+import json
+from collections.abc import Iterator
+
 from pydantic import BaseModel, ConfigDict, ValidationError
 
 from schemas.diagnosis import Diagnosis
 from schemas.messages import ServiceError
 
 SCHEMA_NAME = "foxglove.Log"
+SAMPLE_SCHEMA_NAME = "railtwin.PassageSample"
 
 DEBUG, INFO, WARNING, ERROR, FATAL = 1, 2, 3, 4, 5
 """``foxglove.Log``'s levels."""
@@ -70,3 +89,45 @@ def log_entry(model_name: str, data: bytes, time_ns: int) -> Log | None:
     except ValidationError:
         return None
     return None
+
+
+class PassageSample(BaseModel):
+    """One sample of a passage, at its own time (the class is named after the schema)."""
+
+    model_config = ConfigDict(frozen=True)
+    timestamp: Time
+    passage_id: str
+    x: float
+    """wheel centre position along the site, m"""
+    force: float
+    """contact force F, N"""
+    indentation: float
+    """indentation δ, m (negative: out of contact)"""
+
+
+def samples_topic(topic: str) -> str:
+    """``railtwin/<site>/samples`` for a message of ``railtwin/<site>/<kind>``."""
+    return topic.rsplit("/", 1)[0] + "/samples"
+
+
+def samples(result_json: bytes) -> Iterator[tuple[int, bytes]]:
+    """(time in UNIX ns, ``PassageSample`` JSON) of every sample of a ``PassageResult``'s
+    JSON; nothing for JSON that is not one. Values have 7 significant digits (a plot's
+    precision; the result has them exact): a quarter less MCAP than all 17.
+
+    >>> r = b'{"passage_id": "p1", "timestamp": 10.0, "speed": 40.0, "x": [0.0, 0.4],'
+    >>> r += b' "force": [1.0, 2.5e5], "indentation": [0.0, 1e-4]}'
+    >>> [(t, PassageSample.model_validate_json(d).force) for t, d in samples(r)]
+    [(10000000000, 1.0), (10010000000, 250000.0)]
+    """
+    try:
+        r = json.loads(result_json)
+        pid, t0, speed = json.dumps(str(r["passage_id"])), float(r["timestamp"]), float(r["speed"])
+        xs, fs, ds = r["x"], r["force"], r["indentation"]
+    except (ValueError, KeyError, TypeError):
+        return
+    for x, f, d in zip(xs, fs, ds, strict=False):
+        ns = round((t0 + x / speed) * 1e9)
+        sec, nsec = divmod(ns, 1_000_000_000)
+        yield ns, (f'{{"timestamp":{{"sec":{sec},"nsec":{nsec}}},"passage_id":{pid},'
+                   f'"x":{x:.7g},"force":{f:.7g},"indentation":{d:.7g}}}').encode()

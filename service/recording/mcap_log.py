@@ -186,9 +186,11 @@ def read_log(paths: list[Path]) -> Iterator[LoggedMessage]:
 
 def model_for_schema(schema_name: str) -> type[BaseModel]:
     """The pydantic model of a logged schema name (``railtwin.PassageResult/1.0``,
-    ``foxglove.Log``)."""
+    ``foxglove.Log``, ``railtwin.PassageSample``)."""
     if schema_name == foxglove.SCHEMA_NAME:
         return foxglove.Log
+    if schema_name == foxglove.SAMPLE_SCHEMA_NAME:
+        return foxglove.PassageSample
     name = schema_name.removeprefix("railtwin.").split("/", 1)[0]
     return MESSAGE_MODELS[name]
 

@@ -24,7 +24,12 @@ whole process group while it is still starting does not kill it. It finishes its
 files on its own if the service dies: it watches its parent. If it dies all the
 same, the service stops queueing for it and never waits on its pipe.
 The MCAP log is flushed at least every ``flush_interval`` seconds, so a
-crash loses at most that much.
+crash loses at most that much of it; and it tells the twin's journal
+(``service.recording.input_journal``) which of its records are in a flushed chunk now:
+a message carries its record's ticket, the child counts the items it has written and
+publishes that count after each flush (and after closing the file), and the front
+hands the tickets of the items counted back to the journal, which deletes the parts it
+no longer needs. After a failed MCAP write the count stops: the journal keeps the rest.
 """
 
 from __future__ import annotations
@@ -33,7 +38,9 @@ import contextlib
 import multiprocessing as mp
 import os
 import queue
+import threading
 import time
+from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -44,6 +51,7 @@ from pydantic import BaseModel
 from schemas.diagnosis import Diagnosis
 from schemas.messages import PassageResult, RailState
 from service.recording import foxglove
+from service.recording.input_journal import InputJournal
 from service.wire.child_process import ignore_stop_signals, start_shielded
 
 
@@ -65,6 +73,10 @@ class RecordingPlan:
     """Written as a ``railtwin`` metadata record at the start of every MCAP file."""
     rerun_backlog_bytes: int = 64 * 2**20
     """Beyond this many bytes waiting for the child, passages are not drawn in Rerun."""
+    samples_backlog_bytes: int = 16 * 2**20
+    """Beyond this many bytes waiting, a result is not also written sample by sample on the
+    MCAP's samples channel (~10 ms of the child a passage of 1 351 samples: under a flood
+    the child keeps its time for the log and the Rerun drawings)."""
     mcap_backlog_bytes: int = 256 * 2**20
     """Beyond this many bytes waiting, a message for the MCAP log waits for room."""
     rrd_part_passages: int = 5000
@@ -80,15 +92,22 @@ class RecordingPlan:
 class ProcessRecorder:
     """Front of the recording child process (thread-safe: ``multiprocessing.Queue``)."""
 
-    def __init__(self, plan: RecordingPlan) -> None:
+    def __init__(self, plan: RecordingPlan, journal: InputJournal | None = None) -> None:
+        """``journal``: given the ticket of a message's record, the journal is told when the
+        message is in a flushed MCAP chunk (``InputJournal.release``)."""
         self.plan = plan
+        self.journal = journal
         ctx = mp.get_context("spawn")
         self._queue: Any = ctx.Queue()
         self._status: Any = ctx.Queue()
         self._pending: Any = ctx.Value("q", 0)  # bytes queued, not yet written by the child
+        self._flushed: Any = ctx.Value("q", 0)  # items written by the child, MCAP flushed
+        self._order = threading.Lock()  # an item's number is its place in the queue
+        self._queued = 0
+        self._tickets: deque[tuple[int, int]] = deque()  # (item number, journal ticket)
         self._process = ctx.Process(
             target=_child_main,
-            args=(plan, self._queue, self._status, os.getpid(), self._pending),
+            args=(plan, self._queue, self._status, os.getpid(), self._pending, self._flushed),
             name="railtwin-recorder", daemon=True,
         )
         start_shielded(self._process)  # a signal to the group while it starts is not its death
@@ -96,17 +115,30 @@ class ProcessRecorder:
         self.last_failure: str | None = None
         self.not_drawn = 0
         """Passages, dents and diagnoses not drawn in Rerun because the child was behind."""
+        self.not_sampled = 0
+        """Results whose per-sample channel was not written because the child was behind."""
         self._mcap_path: str | None = None
         self._rrd_path: str | None = None
         self._closed = False
+        self._done = threading.Event()
+        if journal is not None:  # the journal lets go of what was flushed, even when idle
+            threading.Thread(target=self._release_loop, name="railtwin-journal-release",
+                             daemon=True).start()
 
     # --- front -------------------------------------------------------------------------
 
     def message(self, topic: str, model: type[BaseModel], data: bytes, log_time_ns: int,
-                publish_time_ns: int | None = None) -> None:
+                publish_time_ns: int | None = None, journal_ticket: int | None = None) -> None:
+        """``journal_ticket``: the ticket of this message's journal record, released once
+        the message is in a flushed MCAP chunk."""
         if self.plan.mcap and not self._closed:
+            # a result's samples on their own channel too, unless the child is behind
+            samples = (model is PassageResult
+                       and self.pending_bytes() + len(data) <= self.plan.samples_backlog_bytes)
+            if model is PassageResult and not samples:
+                self.not_sampled += 1
             self._put_waiting(("m", len(data), topic, model.__name__, data, log_time_ns,
-                               publish_time_ns))
+                               publish_time_ns, samples), journal_ticket)
 
     def passage(self, result: PassageResult, data: bytes | None = None) -> None:
         """``data``: the result's JSON if the caller has it already (saves serialising twice)."""
@@ -139,13 +171,34 @@ class ProcessRecorder:
         """Bytes queued for the child and not yet written (what the queue holds in memory)."""
         return int(self._pending.value)
 
-    def _put(self, item: tuple[Any, ...]) -> None:
+    def _put(self, item: tuple[Any, ...], journal_ticket: int | None = None) -> None:
         if not self._process.is_alive():  # nobody reads the pipe: queueing would fill it
             self._lost(f"the recorder process has died (exit code {self._process.exitcode})")
             return
         with self._pending.get_lock():
             self._pending.value += item[1]
-        self._queue.put(item)
+        with self._order:
+            self._queue.put(item)
+            if journal_ticket is not None and self.journal is not None:
+                self._tickets.append((self._queued, journal_ticket))
+            self._queued += 1
+        self._release_flushed()
+
+    def _release_loop(self) -> None:
+        while not self._done.wait(self.plan.flush_interval):
+            self._release_flushed()
+
+    def _release_flushed(self) -> None:
+        """Hand the journal the tickets of the messages now in a flushed MCAP chunk."""
+        if self.journal is None:
+            return
+        flushed = int(self._flushed.value)
+        done: list[int] = []
+        with self._order:
+            while self._tickets and self._tickets[0][0] < flushed:
+                done.append(self._tickets.popleft()[1])
+        if done:
+            self.journal.release(done)
 
     def _lost(self, why: str) -> None:
         self.failures += 1
@@ -162,7 +215,7 @@ class ProcessRecorder:
             note = f"{passage_id}".encode()
             self._put(("s", len(note), note, behind))
 
-    def _put_waiting(self, item: tuple[Any, ...]) -> None:
+    def _put_waiting(self, item: tuple[Any, ...], journal_ticket: int | None) -> None:
         """Queue a message for the MCAP log, waiting while ``mcap_backlog_bytes`` are."""
         limit = self.plan.mcap_backlog_bytes
         if self.pending_bytes() + item[1] > limit:
@@ -177,7 +230,7 @@ class ProcessRecorder:
                            f"made no room within {self.plan.mcap_wait_timeout:g} s"))
                     return
                 time.sleep(0.002)
-        self._put(item)
+        self._put(item, journal_ticket)
 
     def backlog(self) -> int:
         try:
@@ -203,11 +256,17 @@ class ProcessRecorder:
         if self._closed:
             return
         self._closed = True
+        behind = []
         if self.not_drawn:
+            behind.append(f"{self.not_drawn} passages, dents or diagnoses not drawn in the Rerun "
+                          "recording")
+        if self.not_sampled:
+            behind.append(f"{self.not_sampled} results not written sample by sample on the "
+                          "MCAP's samples channel")
+        if behind:
             self.failures += 1
             self.last_failure = (
-                f"{self.not_drawn} passages, dents or diagnoses not drawn in the Rerun recording: "
-                f"the recorder was more than {self.plan.rerun_backlog_bytes / 2**20:g} MB behind "
+                f"{' and '.join(behind)}: the recorder was behind "
                 "(the MCAP log has them all)")
         if self._process.is_alive():
             self._queue.put(None)
@@ -219,6 +278,8 @@ class ProcessRecorder:
             self.last_failure = f"recorder did not finish within {timeout:g} s"
         elif self._process.exitcode not in (0, None):
             self._lost(f"the recorder process ended with exit code {self._process.exitcode}")
+        self._done.set()
+        self._release_flushed()
         self._poll()
         # what is still in the queue's pipe has no reader: exit without waiting to write it
         self._queue.cancel_join_thread()
@@ -240,8 +301,9 @@ class ProcessRecorder:
 
 
 def _child_main(plan: RecordingPlan, inbox: Any, status: Any, parent_pid: int,
-                pending: Any) -> None:
-    """The child's loop: write every queued item in order; flush MCAP regularly."""
+                pending: Any, flushed: Any) -> None:
+    """The child's loop: write every queued item in order; flush MCAP regularly, then
+    publish in ``flushed`` how many items are written and flushed."""
     ignore_stop_signals()
     from schemas import all_models
     from service.recording.mcap_log import McapLog
@@ -260,6 +322,8 @@ def _child_main(plan: RecordingPlan, inbox: Any, status: Any, parent_pid: int,
     rrd_path = path
     last_flush = time.monotonic()
     last_path: Path | None = None
+    received = 0  # items taken off the queue
+    mcap_failed = False  # a message may be missing from the MCAP: the journal keeps the rest
     try:
         while True:
             try:
@@ -279,7 +343,9 @@ def _child_main(plan: RecordingPlan, inbox: Any, status: Any, parent_pid: int,
                     status.put(("rrd", str(rrd_path)))
             except Exception as exc:  # a recording failure is reported, never fatal
                 status.put(("fail", f"{type(exc).__name__}: {exc}"))
+                mcap_failed = mcap_failed or item[0] == "m"
             if item:
+                received += 1
                 with pending.get_lock():
                     pending.value -= item[1]
             if mcap is not None:
@@ -290,10 +356,14 @@ def _child_main(plan: RecordingPlan, inbox: Any, status: Any, parent_pid: int,
                 if now - last_flush >= plan.flush_interval:
                     mcap.flush()
                     last_flush = now
+                    if not mcap_failed:
+                        flushed.value = received
     finally:
         if mcap is not None:
             with contextlib.suppress(Exception):
                 mcap.close()
+                if not mcap_failed:
+                    flushed.value = received
         if rerun is not None:
             with contextlib.suppress(Exception):
                 rerun.close()
@@ -305,8 +375,13 @@ def _write(item: tuple[Any, ...], models: dict[str, type[BaseModel]], mcap: Any,
         return
     kind, _size, *rest = item
     if kind == "m" and mcap is not None:
-        topic, model_name, data, log_time_ns, publish_time_ns = rest
+        topic, model_name, data, log_time_ns, publish_time_ns, with_samples = rest
         mcap.write(topic, models[model_name], data, log_time_ns, publish_time_ns)
+        if with_samples:  # plottable against time in Foxglove
+            sample_topic = foxglove.samples_topic(topic)
+            for ns, sample in foxglove.samples(data):
+                mcap.write(sample_topic, foxglove.PassageSample, sample, ns, ns,
+                           schema_name=foxglove.SAMPLE_SCHEMA_NAME)
         entry = foxglove.log_entry(model_name, data, log_time_ns)
         if entry is not None:  # errors and verdicts in Foxglove's Log panel too
             mcap.write(foxglove.log_topic(topic), foxglove.Log,

@@ -6,20 +6,30 @@ entities as a run of one wheel; ``tests/test_service_rerun.py``):
 
 | entity | what | unit |
 |---|---|---|
-| ``<site>/force`` | contact force F of every wheel | kN |
-| ``<site>/force/transitions`` | markers: losses/returns of contact, yield/unyield | kN |
-| ``<site>/indentation`` | indentation δ (negative: out of contact) | µm |
-| ``<site>/motion/y_c``, ``<site>/motion/y_ck`` | wheel centre y_C, rigid constraint y_C^k | µm |
+| ``<site>/force`` | contact force F of every wheel | N |
+| ``<site>/force/transitions`` | markers: losses/returns of contact, yield/unyield | N |
+| ``<site>/indentation`` | indentation δ (negative: out of contact) | m |
+| ``<site>/motion/y_c``, ``<site>/motion/y_ck`` | wheel centre y_C, rigid constraint y_C^k | m |
 | ``<site>/wheel`` | a text document naming the wheel (id, train, axle, side, speed, load, result) | |
 | ``<site>/passages`` | one text line per passage (peak force, losses, dent) | |
-| ``<site>/rail/profile`` | the site's rail as the service started | µm |
-| ``<site>/rail/dent`` | accumulated dent depth after each passage that dented | µm |
-| ``<site>/diagnosis/measured``, ``.../fit`` | measured and best-fit force of each diagnosis | kN |
-| ``<site>/diagnosis/impacts`` | markers: the fitted flat under the wheel | kN |
+| ``<site>/rail/profile`` | the site's rail as the service started | m |
+| ``<site>/rail/dent`` | accumulated dent depth after each passage that dented | m |
+| ``<site>/diagnosis/measured``, ``.../fit`` | measured and best-fit force of each diagnosis | N |
+| ``<site>/diagnosis/impacts`` | markers: the fitted flat under the wheel | N |
+
+Everything is in SI units (N, m, s), as in the messages, and every series and view
+names its unit (``F [N]``, ``δ [m]``); the text lines too.
 | ``<site>/diagnosis/verdict`` | one text line per diagnosis (verdict, flat, peak forces) | |
 
-Time lines (Rerun's are integers: sequences):
+Time lines:
 
+- ``time`` (a timestamp, the wall clock): when each sample happened, the passage's own
+  time (``WheelPassage.timestamp``, the wheel at x = 0) plus x/speed. Text lines (the
+  wheel, the passage log, a diagnosis's verdict) are at the passage's time. It goes on
+  across runs and parts: recordings of several runs opened together lie in time order.
+- ``passage_time`` (a timestamp): the passage's own time, on every sample of the
+  passage, so that, like ``passage`` below but across runs, the series views draw each
+  wheel as one vertical stroke (a trend over days or months).
 - ``passage``: the passage's index in the run, 0, 1, 2, ... Every sample of a
   passage carries it; on this time line the series views draw each wheel as
   one vertical stroke from its lowest to its highest value (a trend of the run)
@@ -31,6 +41,8 @@ Time lines (Rerun's are integers: sequences):
   default blueprint's plots show the ±500 m around the time cursor on it, i.e.
   exactly one wheel: click a line of the ``Passages`` log (or step the cursor)
   to see that wheel, named beside the force plot.
+- diagnoses are on ``time`` and ``passage_time`` too, at their passage's time (as
+  recorded in this run, else ``Diagnosis.timestamp``);
 - ``diagnosis`` and ``diagnosis_mm``: the same for diagnoses (index ``d``,
   ``d·10⁶ + mm``). A diagnosis whose passage was recorded in this run (among
   the last ``KEPT_PASSAGE_INDEXES``) is drawn in that passage's slot of
@@ -63,6 +75,8 @@ from schemas.messages import PassageResult, RailState
 
 X_TIMELINE = "x_mm"
 PASSAGE_TIMELINE = "passage"
+TIME_TIMELINE = "time"
+PASSAGE_TIME_TIMELINE = "passage_time"
 DIAGNOSIS_TIMELINE = "diagnosis"
 DIAGNOSIS_X_TIMELINE = "diagnosis_mm"
 SLOT_MM = 1_000_000
@@ -119,24 +133,24 @@ def default_blueprint(site_id: str) -> rrb.Blueprint:
         rrb.Vertical(
             rrb.Horizontal(
                 rrb.TimeSeriesView(
-                    name="Contact force F [kN] of the wheel at the cursor (x_mm: passage·10⁶ + mm)",
+                    name="Contact force F [N] of the wheel at the cursor (x_mm: passage·10⁶ + mm)",
                     origin=e["force"], time_ranges=window,
                 ),
                 rrb.TextDocumentView(name="Wheel at the cursor", origin=e["wheel"]),
                 column_shares=[3, 1],
             ),
-            rrb.TimeSeriesView(name="Indentation δ [µm]", origin=e["indentation"],
+            rrb.TimeSeriesView(name="Indentation δ [m]", origin=e["indentation"],
                                time_ranges=window),
             rrb.Horizontal(
-                rrb.TimeSeriesView(name="Wheel centre y_C and constraint y_C^k [µm]",
+                rrb.TimeSeriesView(name="Wheel centre y_C and constraint y_C^k [m]",
                                    origin=e["motion"], time_ranges=window),
                 rrb.TimeSeriesView(name="Rail: profile (slot 0), then the dent after each "
-                                   "denting passage [µm]", origin=e["rail"]),
+                                   "denting passage [m]", origin=e["rail"]),
                 rrb.TextLogView(name="Passages (click one to show its wheel)",
                                 origin=e["passages"]),
             ),
             rrb.Horizontal(
-                rrb.TimeSeriesView(name="Diagnosis: measured and fitted force [kN]",
+                rrb.TimeSeriesView(name="Diagnosis: measured and fitted force [N]",
                                    origin=e["diagnosis"], time_ranges=window),
                 rrb.TextLogView(name="Verdicts", origin=e["verdict"]),
                 column_shares=[3, 1],
@@ -163,10 +177,19 @@ def x_index(x_m: NDArray[np.float64], slot: int = 0) -> NDArray[np.int64]:
     return mm + np.int64(slot) * SLOT_MM
 
 
+def si(value: float, unit: str) -> str:
+    """A value in its SI unit, 4 significant digits (no kN, no µm).
+
+    >>> si(182_345.0, "N"), si(2.5e-6, "m"), si(0.0, "m")
+    ('1.823e+05 N', '2.5e-06 m', '0 m')
+    """
+    return f"{value:.4g} {unit}"
+
+
 def wheel_document(index: int, r: PassageResult) -> str:
     """The markdown that names the wheel of passage ``index`` (the ``wheel`` entity)."""
     s = r.summary
-    kinds = ", ".join(f"{tr.kind} at {(tr.x if tr.x is not None else r.speed * tr.t) * 1e3:.0f} mm"
+    kinds = ", ".join(f"{tr.kind} at {si(tr.x if tr.x is not None else r.speed * tr.t, 'm')}"
                       for tr in r.transitions[:12])
     more = f" (+{len(r.transitions) - 12} more)" if len(r.transitions) > 12 else ""
     return (
@@ -174,9 +197,10 @@ def wheel_document(index: int, r: PassageResult) -> str:
         f"passage {index} of the run (x_mm {index * SLOT_MM:_} …)\n\n"
         f"- train **{r.train_id}**, axle {r.axle_index}, {r.side} wheel\n"
         f"- speed {r.speed:.1f} m/s, site {r.site_length:g} m, rail revision {r.rail_revision}\n"
-        f"- peak F **{s.peak_force / 1e3:.1f} kN**, min F {s.min_force / 1e3:.1f} kN\n"
-        f"- contact losses {s.contact_losses}, out of contact {s.time_out_of_contact * 1e3:.2f} ms\n"
-        f"- max δ {s.max_indentation * 1e6:.1f} µm, dent {s.max_dent * 1e6:.2f} µm\n"
+        f"- at {r.timestamp:.3f} s (UNIX)\n"
+        f"- peak F **{si(s.peak_force, 'N')}**, min F {si(s.min_force, 'N')}\n"
+        f"- contact losses {s.contact_losses}, out of contact {si(s.time_out_of_contact, 's')}\n"
+        f"- max δ {si(s.max_indentation, 'm')}, dent {si(s.max_dent, 'm')}\n"
         f"- transitions: {kinds or 'none'}{more}\n"
     )
 
@@ -197,7 +221,8 @@ class RerunRecording:
         self._diagnoses = 0
         self._in_part = 0
         self._rail: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None
-        self._index_of: OrderedDict[str, int] = OrderedDict()
+        self._index_of: OrderedDict[str, tuple[int, float]] = OrderedDict()
+        """Recent passages: id -> (index, the passage's own time)."""
         self._closed = False
         self._open(path)
 
@@ -232,49 +257,64 @@ class RerunRecording:
     def _style(self) -> None:
         """Names and colours of the series, once (static)."""
         e, log = self.entities, self.rec.log
-        log(e["force"], rr.SeriesLines(names="F [kN]", aggregation_policy="MinMax"), static=True)
+        log(e["force"], rr.SeriesLines(names="F [N]", aggregation_policy="MinMax"), static=True)
         log(e["transitions"], rr.SeriesPoints(markers="circle", marker_sizes=4.0,
-                                              names="transitions"), static=True)
-        log(e["indentation"], rr.SeriesLines(names="δ [µm]", aggregation_policy="MinMax"),
+                                              names="transitions F [N]"), static=True)
+        log(e["indentation"], rr.SeriesLines(names="δ [m]", aggregation_policy="MinMax"),
             static=True)
-        log(e["y_c"], rr.SeriesLines(names="y_C [µm]"), static=True)
-        log(e["y_ck"], rr.SeriesLines(names="y_C^k [µm]"), static=True)
-        log(e["profile"], rr.SeriesLines(names="rail y_r at start [µm]"), static=True)
-        log(e["dent"], rr.SeriesLines(names="accumulated dent [µm]"), static=True)
-        log(e["measured"], rr.SeriesLines(names="measured F [kN]", colors=(120, 120, 120)),
+        log(e["y_c"], rr.SeriesLines(names="y_C [m]"), static=True)
+        log(e["y_ck"], rr.SeriesLines(names="y_C^k [m]"), static=True)
+        log(e["profile"], rr.SeriesLines(names="rail y_r at start [m]"), static=True)
+        log(e["dent"], rr.SeriesLines(names="accumulated dent [m]"), static=True)
+        log(e["measured"], rr.SeriesLines(names="measured F [N]", colors=(120, 120, 120)),
             static=True)
-        log(e["fit"], rr.SeriesLines(names="fit F [kN]", colors=(230, 60, 60)), static=True)
-        log(e["impacts"], rr.SeriesPoints(markers="cross", marker_sizes=6.0, names="impacts"),
+        log(e["fit"], rr.SeriesLines(names="fit F [N]", colors=(230, 60, 60)), static=True)
+        log(e["impacts"], rr.SeriesPoints(markers="cross", marker_sizes=6.0, names="impacts F [N]"),
             static=True)
 
     def passage_index(self, passage_id: str) -> int | None:
         """The index (``passage`` time line) of a recent passage, None if not recorded."""
-        return self._index_of.get(passage_id)
+        found = self._index_of.get(passage_id)
+        return None if found is None else found[0]
 
-    def _slot(self, index: int, n: int) -> list[rr.TimeColumn]:
-        return [rr.TimeColumn(PASSAGE_TIMELINE, sequence=np.full(n, index, dtype=np.int64))]
+    def _slot(self, index: int, n: int, stamp: float | None = None,
+              times: NDArray[np.float64] | None = None) -> list[rr.TimeColumn]:
+        """The ``passage`` index of ``n`` rows; with the passage's time ``stamp`` also
+        ``passage_time``, and ``time`` = ``stamp + times`` (s)."""
+        cols = [rr.TimeColumn(PASSAGE_TIMELINE, sequence=np.full(n, index, dtype=np.int64))]
+        if stamp is not None:
+            cols.append(rr.TimeColumn(PASSAGE_TIME_TIMELINE, timestamp=np.full(n, stamp)))
+            at = np.full(n, stamp) if times is None else stamp + np.asarray(times, np.float64)
+            cols.append(rr.TimeColumn(TIME_TIMELINE, timestamp=at))
+        return cols
+
+    def _set_times(self, index: int, stamp: float | None) -> None:
+        self.rec.set_time(X_TIMELINE, sequence=index * SLOT_MM)
+        self.rec.set_time(PASSAGE_TIMELINE, sequence=index)
+        if stamp is not None:
+            self.rec.set_time(PASSAGE_TIME_TIMELINE, timestamp=stamp)
+            self.rec.set_time(TIME_TIMELINE, timestamp=stamp)
 
     def log_rail(self, x: NDArray[np.float64], y: NDArray[np.float64]) -> None:
-        """The site's rail profile (µm) as the service started, in slot 0 of ``x_mm`` (of
+        """The site's rail profile (m) as the service started, in slot 0 of ``x_mm`` (of
         every part)."""
         self._rail = (np.asarray(x), np.asarray(y))
         self.rec.send_columns(
             self.entities["profile"],
             indexes=[rr.TimeColumn(X_TIMELINE, sequence=x_index(x))],
-            columns=rr.Scalars.columns(scalars=np.asarray(y) * 1e6),
+            columns=rr.Scalars.columns(scalars=np.asarray(y, dtype=np.float64)),
         )
 
     def log_dent(self, passage_id: str, state: RailState) -> None:
-        """The accumulated dent depth (µm, positive down) after ``passage_id``, in its slot."""
-        index = self.passage_index(passage_id)
-        if index is None:
-            index = max(self._passages - 1, 0)
+        """The accumulated dent depth (m, positive down) after ``passage_id``, in its slot."""
+        found = self._index_of.get(passage_id)
+        index, stamp = found if found is not None else (max(self._passages - 1, 0), None)
         x = np.asarray(state.x)
         self.rec.send_columns(
             self.entities["dent"],
             indexes=[rr.TimeColumn(X_TIMELINE, sequence=x_index(x, index)),
-                     *self._slot(index, len(x))],
-            columns=rr.Scalars.columns(scalars=np.asarray(state.dent) * 1e6),
+                     *self._slot(index, len(x), stamp)],
+            columns=rr.Scalars.columns(scalars=np.asarray(state.dent, dtype=np.float64)),
         )
 
     def log_passage(self, result: PassageResult) -> None:
@@ -284,14 +324,15 @@ class RerunRecording:
         e = self.entities
         index = self._passages
         x = np.asarray(result.x)
+        stamp = result.timestamp
         index_cols = [rr.TimeColumn(X_TIMELINE, sequence=x_index(x, index)),
-                      *self._slot(index, len(x))]
-        force = np.asarray(result.force)
+                      *self._slot(index, len(x), stamp, x / result.speed)]
+        force = np.asarray(result.force, dtype=np.float64)
         series = (
-            (e["force"], force * 1e-3),
-            (e["indentation"], np.asarray(result.indentation) * 1e6),
-            (e["y_c"], np.asarray(result.y_c) * 1e6),
-            (e["y_ck"], np.asarray(result.y_ck) * 1e6),
+            (e["force"], force),
+            (e["indentation"], np.asarray(result.indentation, dtype=np.float64)),
+            (e["y_c"], np.asarray(result.y_c, dtype=np.float64)),
+            (e["y_ck"], np.asarray(result.y_ck, dtype=np.float64)),
         )
         for entity, values in series:
             self.rec.send_columns(entity, indexes=index_cols,
@@ -299,11 +340,11 @@ class RerunRecording:
         if result.transitions:
             tx = np.array([tr.x if tr.x is not None else result.speed * tr.t
                            for tr in result.transitions])
-            tf = np.interp(tx, x, force) * 1e-3 if len(x) else np.zeros(len(tx))
+            tf = np.interp(tx, x, force) if len(x) else np.zeros(len(tx))
             self.rec.send_columns(
                 e["transitions"],
                 indexes=[rr.TimeColumn(X_TIMELINE, sequence=x_index(tx, index)),
-                         *self._slot(index, len(tx))],
+                         *self._slot(index, len(tx), stamp, tx / result.speed)],
                 columns=[
                     *rr.Scalars.columns(scalars=tf),
                     *rr.SeriesPoints.columns(
@@ -311,18 +352,17 @@ class RerunRecording:
                 ],
             )
         s = result.summary
-        self.rec.set_time(X_TIMELINE, sequence=index * SLOT_MM)
-        self.rec.set_time(PASSAGE_TIMELINE, sequence=index)
+        self._set_times(index, stamp)
         self.rec.log(e["wheel"], rr.TextDocument(wheel_document(index, result),
                                                  media_type=rr.MediaType.MARKDOWN))
         self.rec.log(e["passages"], rr.TextLog(
             f"#{index} {result.passage_id} (train {result.train_id} axle {result.axle_index} "
-            f"{result.side}): peak {s.peak_force / 1e3:.1f} kN, {s.contact_losses} contact "
-            f"losses, max δ {s.max_indentation * 1e6:.1f} µm, dent {s.max_dent * 1e6:.2f} µm",
+            f"{result.side}): peak {si(s.peak_force, 'N')}, {s.contact_losses} contact "
+            f"losses, max δ {si(s.max_indentation, 'm')}, dent {si(s.max_dent, 'm')}",
             level="WARN" if s.contact_losses or s.max_dent > 0 else "INFO",
         ))
         self.rec.reset_time()
-        self._index_of[result.passage_id] = index
+        self._index_of[result.passage_id] = (index, stamp)
         self._index_of.move_to_end(result.passage_id)
         while len(self._index_of) > KEPT_PASSAGE_INDEXES:
             self._index_of.popitem(last=False)
@@ -347,18 +387,24 @@ class RerunRecording:
         self, diag: Diagnosis, t: NDArray[np.float64], measured: NDArray[np.float64],
         fitted: NDArray[np.float64], x: NDArray[np.float64], impacts_x: NDArray[np.float64],
     ) -> None:
-        """Measured vs fitted force (kN) along the site, the impacts and the verdict.
+        """Measured vs fitted force (N) along the site, the impacts and the verdict.
 
         ``t`` (s) are the measured times, ``x`` (m) the wheel centre's positions then;
         ``impacts_x`` (m) where the fitted flat meets the rail. Drawn in the diagnosis's
         slot of ``diagnosis_mm`` and, if its passage was recorded, in that passage's slot
         of ``x_mm``.
         """
-        del t  # the series go along the site, like the passages
+        # the series go along the site, like the passages; their time from the positions
+        span = float(np.ptp(x)) if len(x) > 1 else 0.0
+        duration = float(np.ptp(t)) if len(t) > 1 else 0.0
+        speed = span / duration if span > 0 and duration > 0 else 1.0
         self._next_part()
         e = self.entities
         d = self._diagnoses
-        index = self.passage_index(diag.passage_id)
+        found = self._index_of.get(diag.passage_id)
+        index = None if found is None else found[0]
+        # the passage's own time: as recorded in this run, else as the diagnosis echoes it
+        stamp = found[1] if found is not None else diag.timestamp
 
         def indexes(positions: NDArray[np.float64]) -> list[rr.TimeColumn]:
             n = len(positions)
@@ -366,31 +412,38 @@ class RerunRecording:
                     rr.TimeColumn(DIAGNOSIS_TIMELINE, sequence=np.full(n, d, dtype=np.int64))]
             if index is not None:
                 cols += [rr.TimeColumn(X_TIMELINE, sequence=x_index(positions, index)),
-                         *self._slot(index, n)]
+                         rr.TimeColumn(PASSAGE_TIMELINE,
+                                       sequence=np.full(n, index, dtype=np.int64))]
+            if stamp is not None:
+                cols += [rr.TimeColumn(PASSAGE_TIME_TIMELINE, timestamp=np.full(n, stamp)),
+                         rr.TimeColumn(TIME_TIMELINE, timestamp=stamp + positions / speed)]
             return cols
 
         at = indexes(x)
         self.rec.send_columns(e["measured"], indexes=at,
-                              columns=rr.Scalars.columns(scalars=measured * 1e-3))
+                              columns=rr.Scalars.columns(scalars=measured))
         self.rec.send_columns(e["fit"], indexes=at,
-                              columns=rr.Scalars.columns(scalars=fitted * 1e-3))
+                              columns=rr.Scalars.columns(scalars=fitted))
         if len(impacts_x) and len(x):
             order = np.argsort(x)
-            f = np.interp(impacts_x, x[order], fitted[order]) * 1e-3
+            f = np.interp(impacts_x, x[order], fitted[order])
             self.rec.send_columns(e["impacts"], indexes=indexes(impacts_x),
                                   columns=rr.Scalars.columns(scalars=f))
         flat = diag.flat
-        found = (f"{flat.kind} {flat.length * 1e3:.1f} mm "
-                 f"[{flat.length_low * 1e3:.1f}, {flat.length_high * 1e3:.1f}]"
-                 if flat is not None else "no flat")
+        what = (f"{flat.kind} {si(flat.length, 'm')} "
+                f"[{si(flat.length_low, 'm')}, {si(flat.length_high, 'm')}]"
+                if flat is not None else "no flat")
         self.rec.set_time(DIAGNOSIS_X_TIMELINE, sequence=d * SLOT_MM)
         self.rec.set_time(DIAGNOSIS_TIMELINE, sequence=d)
         if index is not None:
             self.rec.set_time(X_TIMELINE, sequence=index * SLOT_MM)
             self.rec.set_time(PASSAGE_TIMELINE, sequence=index)
+        if stamp is not None:
+            self.rec.set_time(PASSAGE_TIME_TIMELINE, timestamp=stamp)
+            self.rec.set_time(TIME_TIMELINE, timestamp=stamp)
         self.rec.log(e["verdict"], rr.TextLog(
-            f"{diag.passage_id}: {diag.verdict.upper()}, {found}, measured peak "
-            f"{diag.peak_force_measured / 1e3:.0f} kN, fit peak {diag.peak_force_fit / 1e3:.0f} kN"
+            f"{diag.passage_id}: {diag.verdict.upper()}, {what}, measured peak "
+            f"{si(diag.peak_force_measured, 'N')}, fit peak {si(diag.peak_force_fit, 'N')}"
             + (f"; {'; '.join(diag.reasons)}" if diag.reasons else ""),
             level=VERDICT_LEVELS[diag.verdict],
         ))

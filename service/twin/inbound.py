@@ -13,6 +13,8 @@ class Inbound:
     payload: bytes
     received_ns: int
     received_mono: float
+    journal_ticket: int | None = None
+    """Of its journal record (``InputJournal.append``): released once the MCAP holds it."""
 
     @property
     def received_at(self) -> float:

@@ -64,14 +64,15 @@ class Intake:
         received_ns, received_mono = time.time_ns(), time.monotonic()
         key = str(sample.key_expr)
         too_large = limits.payload_problem(len(sample.payload), measured)
+        ticket = None
         if self.journal is not None:  # on disk before it is queued (survives kill -9)
             raw = sample.payload.to_bytes()
-            self.journal.append(key, received_ns,
-                                raw if too_large is None else raw[:LOGGED_PREFIX_BYTES])
+            ticket = self.journal.append(
+                key, received_ns, raw if too_large is None else raw[:LOGGED_PREFIX_BYTES])
         what = "measurement" if measured else "passage"
         if too_large is not None:  # refused unread: only its first bytes are logged
             head = sample.payload.to_bytes()[:LOGGED_PREFIX_BYTES]
-            item = Inbound(key, head, received_ns, received_mono)
+            item = Inbound(key, head, received_ns, received_mono, ticket)
             self.output.log_input(item, None, payload_bytes=len(sample.payload))
             self.output.error(
                 item, "invalid_measurement" if measured else "invalid_passage",
@@ -79,7 +80,7 @@ class Intake:
                 problems=[FieldProblem(field="", message=too_large, type="payload_too_large")],
                 passage_id=limits.peek_passage_id(head))
             return
-        item = Inbound(key, sample.payload.to_bytes(), received_ns, received_mono)
+        item = Inbound(key, sample.payload.to_bytes(), received_ns, received_mono, ticket)
         try:
             self.queue.put_nowait(item)
         except queue.Full:

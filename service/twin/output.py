@@ -35,8 +35,6 @@ from service.wire.keyspace import SiteKeys
 
 log = logging.getLogger("railtwin.twin")
 
-log = logging.getLogger("railtwin.twin")
-
 JOURNALED_OUTPUTS: tuple[type[BaseModel], ...] = (PassageResult, Diagnosis, ServiceError)
 """Outputs also appended to the journal when published (the series are in the result)."""
 
@@ -66,11 +64,12 @@ class Output:
             congestion_control=zenoh.CongestionControl.BLOCK, express=True,
         )
         now = time.time_ns()
+        ticket = None
         if self.journal is not None and model in JOURNALED_OUTPUTS:
             # the record of what the twin said, on disk now: the recorder may lag behind
-            self.journal.append(topic, now, data)
+            ticket = self.journal.append(topic, now, data)
         if self.recorder is not None:
-            self.recorder.message(topic, model, data, now, publish_time_ns)
+            self.recorder.message(topic, model, data, now, publish_time_ns, ticket)
 
     def publish_error(self, error: ServiceError) -> None:
         with self._counts:  # the callbacks, the worker and the publisher all report errors
@@ -100,7 +99,8 @@ class Output:
             model = MeasuredPassage if measured else WheelPassage
             at = (round(message.timestamp * 1e9) if isinstance(message, WheelPassage)
                   else None)  # the passage's own time, as publish_time in the log
-            self.recorder.message(key, model, item.payload, item.received_ns, at)
+            self.recorder.message(key, model, item.payload, item.received_ns, at,
+                                  item.journal_ticket)
             return
         rejected = RejectedInput(
             key=item.key, payload_base64=base64.b64encode(item.payload).decode("ascii"),
@@ -109,4 +109,5 @@ class Output:
         )
         self.recorder.message(
             f"{key}/rejected", RejectedInput, rejected.model_dump_json().encode(), item.received_ns,
+            None, item.journal_ticket,
         )
