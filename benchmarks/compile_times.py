@@ -72,8 +72,16 @@ def _child(site_file: Path) -> dict[str, Any]:
             disp = event.data["dispatcher"]
             fn = disp.py_func
             args = ", ".join(str(a) for a in event.data["args"])
-            compiled.append(Compiled(f"{fn.__module__}.{fn.__qualname__}", f"({args})", dur,
-                                     dur - nested, cpu - nested_cpu, len(stack)))
+            compiled.append(
+                Compiled(
+                    f"{fn.__module__}.{fn.__qualname__}",
+                    f"({args})",
+                    dur,
+                    dur - nested,
+                    cpu - nested_cpu,
+                    len(stack),
+                )
+            )
 
     ev.register("numba:compile", Recorder())
     phases: dict[str, float] = {}
@@ -100,8 +108,15 @@ def _child(site_file: Path) -> dict[str, Any]:
 def _run_child(cache_dir: Path, site_file: Path) -> dict[str, Any]:
     env = dict(os.environ, NUMBA_CACHE_DIR=str(cache_dir))
     with tempfile.NamedTemporaryFile(suffix=".json") as out:
-        cmd = [sys.executable, "-m", "benchmarks.compile_times", "--child", out.name,
-               "--site", str(site_file)]
+        cmd = [
+            sys.executable,
+            "-m",
+            "benchmarks.compile_times",
+            "--child",
+            out.name,
+            "--site",
+            str(site_file),
+        ]
         t0 = time.perf_counter()
         subprocess.run(cmd, cwd=ROOT, env=env, check=True)
         wall = time.perf_counter() - t0
@@ -114,36 +129,47 @@ def _table(compiled: list[dict[str, Any]], top: int) -> str:
     """Per function (all its signatures together): compiles, self and inclusive seconds."""
     per: dict[str, dict[str, Any]] = {}
     for c in compiled:
-        row = per.setdefault(c["function"], {"n": 0, "self": 0.0, "cpu": 0.0, "incl": 0.0,
-                                             "sigs": set()})
+        row = per.setdefault(
+            c["function"], {"n": 0, "self": 0.0, "cpu": 0.0, "incl": 0.0, "sigs": set()}
+        )
         row["n"] += 1
         row["self"] += c["self_time"]
         row["cpu"] += c.get("self_cpu", float("nan"))
         row["incl"] = max(row["incl"], c["inclusive"])
         row["sigs"].add(c["signature"])
     rows = sorted(per.items(), key=lambda kv: -kv[1]["self"])
-    lines = ["| function | signatures | self s | self CPU s | inclusive s (largest) |",
-             "|---|---:|---:|---:|---:|"]
+    lines = [
+        "| function | signatures | self s | self CPU s | inclusive s (largest) |",
+        "|---|---:|---:|---:|---:|",
+    ]
     for name, r in rows[:top]:
         short = name.removeprefix("sim_core.")
-        lines.append(f"| {short} | {len(r['sigs'])} | {r['self']:.2f} | {r['cpu']:.2f} | "
-                     f"{r['incl']:.2f} |")
+        lines.append(
+            f"| {short} | {len(r['sigs'])} | {r['self']:.2f} | {r['cpu']:.2f} | {r['incl']:.2f} |"
+        )
     rest = rows[top:]
     if rest:
-        lines.append(f"| ({len(rest)} more) | {sum(len(r['sigs']) for _, r in rest)} | "
-                     f"{sum(r['self'] for _, r in rest):.2f} | "
-                     f"{sum(r['cpu'] for _, r in rest):.2f} | |")
+        lines.append(
+            f"| ({len(rest)} more) | {sum(len(r['sigs']) for _, r in rest)} | "
+            f"{sum(r['self'] for _, r in rest):.2f} | "
+            f"{sum(r['cpu'] for _, r in rest):.2f} | |"
+        )
     total_self = sum(c["self_time"] for c in compiled)
     total_cpu = sum(c.get("self_cpu", float("nan")) for c in compiled)
-    lines.append(f"| **all {len(per)} functions** | {len(compiled)} | {total_self:.2f} | "
-                 f"{total_cpu:.2f} | |")
+    lines.append(
+        f"| **all {len(per)} functions** | {len(compiled)} | {total_self:.2f} | {total_cpu:.2f} | |"
+    )
     return "\n".join(lines)
 
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="compile_times", description=__doc__.split("\n")[0])
-    p.add_argument("--cache-dir", type=Path, default=None,
-                   help="numba cache directory (default: a new temporary one, removed after)")
+    p.add_argument(
+        "--cache-dir",
+        type=Path,
+        default=None,
+        help="numba cache directory (default: a new temporary one, removed after)",
+    )
     p.add_argument("--site", type=Path, default=SITE)
     p.add_argument("--top", type=int, default=40, help="rows of the table (default 40)")
     p.add_argument("--json", type=Path, default=None, help="also write the raw events here")
@@ -158,15 +184,19 @@ def main(argv: list[str] | None = None) -> int:
         cold = _run_child(cache, args.site)
         warm = _run_child(cache, args.site)
         load1 = os.getloadavg()
-    print(f"# numba compile times, warm-up of {args.site.name} "
-          f"(load average {load0[0]:.2f} before, {load1[0]:.2f} after; {os.cpu_count()} CPUs)\n")
+    print(
+        f"# numba compile times, warm-up of {args.site.name} "
+        f"(load average {load0[0]:.2f} before, {load1[0]:.2f} after; {os.cpu_count()} CPUs)\n"
+    )
     print(_table(cold["compiled"], args.top))
     for name, run in (("cold", cold), ("warm", warm)):
         ph = ", ".join(f"{k} {v:.1f} s" for k, v in run["phases"].items())
         print(f"\n{name} cache: process {run['process_wall']:.1f} s ({ph})")
     missed = sorted({c["function"] for c in warm["compiled"]})
-    print(f"warm cache: {len(warm['compiled'])} compiles (cache misses)"
-          + (": " + ", ".join(missed) if missed else ""))
+    print(
+        f"warm cache: {len(warm['compiled'])} compiles (cache misses)"
+        + (": " + ", ".join(missed) if missed else "")
+    )
     if args.json is not None:
         args.json.write_text(json.dumps({"cold": cold, "warm": warm}, indent=1))
     return 0

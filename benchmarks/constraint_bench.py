@@ -201,8 +201,9 @@ def fig4_cli_row(repeat: int = 5) -> dict[str, float | str]:
         best = min(best, result.stats.wall_time)
     assert result is not None and result.stats is not None
     w = scenario.wheel
-    contact, _ = contact_model(scenario.contact, scenario.material, radius=w.radius, load=w.load,
-                               mass=w.mass)
+    contact, _ = contact_model(
+        scenario.contact, scenario.material, radius=w.radius, load=w.load, mass=w.mass
+    )
     spec = build_spec(scenario, contact)
     wheel, rail = WheelOutline.round(w.radius), RailProfile.cosine(1e-4, 0.05)
     length = spec.speed * spec.duration
@@ -213,9 +214,7 @@ def fig4_cli_row(repeat: int = 5) -> dict[str, float | str]:
         t0 = time.perf_counter()
         out = simulate_passage(table, spec)
         best_int = min(best_int, time.perf_counter() - t0)
-    t_gen, _ = _best(
-        partial(tabulate_constraint, wheel, rail, 0.0, length, method="general"), 1
-    )
+    t_gen, _ = _best(partial(tabulate_constraint, wheel, rail, 0.0, length, method="general"), 1)
     return {
         "case": "Fig. 4 through the CLI path: round wheel, cosine 0.1 mm / 5 cm, 300 periods",
         "cli_wall_ms": best * 1e3,

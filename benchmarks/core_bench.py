@@ -310,8 +310,9 @@ def bench_multipass(
     # cost of each wheel along the run: flat as the dents accumulate (base + dent overlay,
     # round tables spliced where a dent changed the rail)
     stamps = [time.perf_counter()]
-    simulate_passes(wheel, rail, spec, passes=wheels,
-                    progress=lambda *_: stamps.append(time.perf_counter()))
+    simulate_passes(
+        wheel, rail, spec, passes=wheels, progress=lambda *_: stamps.append(time.perf_counter())
+    )
     per_wheel = np.diff(stamps)
     fifth = max(1, wheels // 5)
     sim = wheels * spec.duration

@@ -48,8 +48,13 @@ from sim_core.diagnosis.forward import Flat  # noqa: E402
 
 AXLES_IN_CAR = (3.7, 6.2, 22.7, 25.2)
 CAR_LENGTH = 26.4
-FLATS = {7: ("flat", 0.04), 29: ("rounded_flat", 0.07), 48: ("flat", 0.08),
-         66: ("rounded_flat", 0.03), 91: ("flat", 0.06)}
+FLATS = {
+    7: ("flat", 0.04),
+    29: ("rounded_flat", 0.07),
+    48: ("flat", 0.08),
+    66: ("rounded_flat", 0.03),
+    91: ("flat", 0.06),
+}
 """Wheel index → the flat it carries (the others are round)."""
 
 
@@ -60,11 +65,22 @@ def train(n: int, speed: float, prefix: str) -> list[tuple[float, WheelPassage]]
         axle, side = divmod(i, 2)
         car, j = divmod(axle, len(AXLES_IN_CAR))
         x = car * CAR_LENGTH + AXLES_IN_CAR[j] - AXLES_IN_CAR[0]
-        out.append((x / speed, WheelPassage(
-            passage_id=f"{prefix}-a{axle:03d}-{'lr'[side]}", train_id=prefix, axle_index=axle,
-            side=("left", "right")[side], timestamp=0.0, speed=speed,
-            load=60000.0 + 2000.0 * ((i * 7) % 5), mass=600.0, radius=0.46,
-        )))
+        out.append(
+            (
+                x / speed,
+                WheelPassage(
+                    passage_id=f"{prefix}-a{axle:03d}-{'lr'[side]}",
+                    train_id=prefix,
+                    axle_index=axle,
+                    side=("left", "right")[side],
+                    timestamp=0.0,
+                    speed=speed,
+                    load=60000.0 + 2000.0 * ((i * 7) % 5),
+                    mass=600.0,
+                    radius=0.46,
+                ),
+            )
+        )
     return out
 
 
@@ -89,15 +105,31 @@ def main(argv: list[str] | None = None) -> int:
         tread = None
         if idx in FLATS:
             kind, ln = FLATS[idx]
-            tread = (Flat.ideal(w.radius, ln, 1.0 + idx) if kind == "flat"
-                     else Flat.rounded(w.radius, ln, None, 1.0 + idx))
-        m = measure(site, w, tread, seed=500 + i, noise=0.02, roughness=3e-6,
-                    damping_ratio=0.15, diagnoser=d)
+            tread = (
+                Flat.ideal(w.radius, ln, 1.0 + idx)
+                if kind == "flat"
+                else Flat.rounded(w.radius, ln, None, 1.0 + idx)
+            )
+        m = measure(
+            site,
+            w,
+            tread,
+            seed=500 + i,
+            noise=0.02,
+            roughness=3e-6,
+            damping_ratio=0.15,
+            diagnoser=d,
+        )
         measured[w.passage_id] = MeasuredPassage(
-            passage_id=w.passage_id, sample_rate=m.sample_rate, t_start=m.t_start,
-            force=m.force.tolist(), speed=w.speed)
-    print(f"generated {len(measured)} measurements in {time.monotonic() - t0:.0f} s",
-          file=sys.stderr)
+            passage_id=w.passage_id,
+            sample_rate=m.sample_rate,
+            t_start=m.t_start,
+            force=m.force.tolist(),
+            speed=w.speed,
+        )
+    print(
+        f"generated {len(measured)} measurements in {time.monotonic() - t0:.0f} s", file=sys.stderr
+    )
     got: dict[str, tuple[float, Diagnosis | None]] = {}
     lock = threading.Lock()
     all_in = threading.Event()
@@ -124,9 +156,11 @@ def main(argv: list[str] | None = None) -> int:
             sub_results = session.declare_subscriber(keys.all_outputs, collector)
             sub = session.declare_subscriber(keys.all_outputs, on_output)
             ppub = declare_passage_publisher(session, keys)
-            mpub = session.declare_publisher(keys.measured,
-                                             encoding=json_encoding(MeasuredPassage),
-                                             congestion_control=zenoh.CongestionControl.BLOCK)
+            mpub = session.declare_publisher(
+                keys.measured,
+                encoding=json_encoding(MeasuredPassage),
+                congestion_control=zenoh.CongestionControl.BLOCK,
+            )
             if not wait_matching(ppub, 20.0) or not wait_matching(mpub, 20.0):
                 raise SystemExit(f"no service at {endpoint}")
             sent: dict[str, float] = {}
@@ -151,9 +185,12 @@ def main(argv: list[str] | None = None) -> int:
 
     with tempfile.TemporaryDirectory(prefix="railtwin-diag-bench-") as tmp:
         endpoint = free_tcp_endpoint()
-        with ServiceProcess(a.site, listen=endpoint, recordings=Path(tmp) / "rec",
-                            extra_args=("--workers", str(a.workers), "--no-mcap",
-                                        "--no-rerun")):
+        with ServiceProcess(
+            a.site,
+            listen=endpoint,
+            recordings=Path(tmp) / "rec",
+            extra_args=("--workers", str(a.workers), "--no-mcap", "--no-rerun"),
+        ):
             run(warm)  # compile caches and tables in the workers
             with lock:
                 got.clear()
@@ -165,25 +202,35 @@ def main(argv: list[str] | None = None) -> int:
             dt = got[w.passage_id][0] - sent[w.passage_id]
             (lat_flat if i in FLATS else lat_round).append(dt)
     last_verdict = max(t for t, _ in got.values()) if got else last_sent
-    print(f"\ndiagnosis train benchmark: {a.wheels} wheels ({len(FLATS)} flat) at "
-          f"{a.kmh:g} km/h, {a.workers} workers, site {site.site_id!r}\n")
-    print(f"- last verdict {last_verdict - last_sent:.2f} s after the last measurement "
-          f"(target <= 10 s); train {max(sent.values()) - min(sent.values()):.1f} s long")
+    print(
+        f"\ndiagnosis train benchmark: {a.wheels} wheels ({len(FLATS)} flat) at "
+        f"{a.kmh:g} km/h, {a.workers} workers, site {site.site_id!r}\n"
+    )
+    print(
+        f"- last verdict {last_verdict - last_sent:.2f} s after the last measurement "
+        f"(target <= 10 s); train {max(sent.values()) - min(sent.values()):.1f} s long"
+    )
     if lat_round:
-        print(f"- round wheels: measurement -> verdict median {statistics.median(lat_round):.2f} s,"
-              f" max {max(lat_round):.2f} s")
+        print(
+            f"- round wheels: measurement -> verdict median {statistics.median(lat_round):.2f} s,"
+            f" max {max(lat_round):.2f} s"
+        )
     if lat_flat:
-        print(f"- flat wheels: measurement -> verdict median {statistics.median(lat_flat):.2f} s,"
-              f" max {max(lat_flat):.2f} s")
+        print(
+            f"- flat wheels: measurement -> verdict median {statistics.median(lat_flat):.2f} s,"
+            f" max {max(lat_flat):.2f} s"
+        )
     for i in sorted(FLATS):
         if i < len(wheels):
             pid = wheels[i][1].passage_id
             dg = got.get(pid, (0.0, None))[1]
             if dg is not None:
-                print(f"  {pid}: true {FLATS[i][0]} {FLATS[i][1] * 1e3:.0f} mm -> "
-                      f"{dg.flat.kind if dg.flat else 'none'} "
-                      f"{dg.flat.length * 1e3 if dg.flat else 0:.1f} mm, {dg.verdict}, "
-                      f"diagnosis wall {dg.wall_time:.2f} s")
+                print(
+                    f"  {pid}: true {FLATS[i][0]} {FLATS[i][1] * 1e3:.0f} mm -> "
+                    f"{dg.flat.kind if dg.flat else 'none'} "
+                    f"{dg.flat.length * 1e3 if dg.flat else 0:.1f} mm, {dg.verdict}, "
+                    f"diagnosis wall {dg.wall_time:.2f} s"
+                )
     if missing:
         print(f"- missing verdicts: {len(missing)} ({missing[:5]})")
     return 0

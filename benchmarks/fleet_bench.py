@@ -43,16 +43,36 @@ T0 = 1_790_000_000.0
 
 def _diagnosis(site: str, pid: str, wheel: str, t: float, flat_mm: float | None) -> str:
     v, ws, side = wheel.split("/")
-    flat = None if flat_mm is None else {
-        "kind": "flat", "length": flat_mm * 1e-3, "depth": (flat_mm * 1e-3) ** 2 / 7.36,
-        "phase": 1.0, "length_low": (flat_mm - 2) * 1e-3, "length_high": (flat_mm + 2) * 1e-3}
+    flat = (
+        None
+        if flat_mm is None
+        else {
+            "kind": "flat",
+            "length": flat_mm * 1e-3,
+            "depth": (flat_mm * 1e-3) ** 2 / 7.36,
+            "phase": 1.0,
+            "length_low": (flat_mm - 2) * 1e-3,
+            "length_high": (flat_mm + 2) * 1e-3,
+        }
+    )
     verdict = "ok" if flat_mm is None or flat_mm < 30 else "watch" if flat_mm < 40 else "inspect"
-    return json.dumps({
-        "schema_version": "1.1", "site_id": site, "passage_id": pid, "timestamp": t,
-        "wheel": {"vehicle_id": v, "wheelset": int(ws), "side": side}, "flat": flat,
-        "verdict": verdict, "reasons": [], "peak_force_measured": 152345.6,
-        "peak_force_fit": 151234.5, "fit_rms": 2345.6, "peak_force_at_line_speed": 254321.0,
-        "wall_time": 0.8})
+    return json.dumps(
+        {
+            "schema_version": "1.1",
+            "site_id": site,
+            "passage_id": pid,
+            "timestamp": t,
+            "wheel": {"vehicle_id": v, "wheelset": int(ws), "side": side},
+            "flat": flat,
+            "verdict": verdict,
+            "reasons": [],
+            "peak_force_measured": 152345.6,
+            "peak_force_fit": 151234.5,
+            "fit_rms": 2345.6,
+            "peak_force_at_line_speed": 254321.0,
+            "wall_time": 0.8,
+        }
+    )
 
 
 def _wheel(k: int) -> str:
@@ -84,8 +104,9 @@ def _pct(xs: list[float], q: float) -> float:
 
 
 @contextmanager
-def _proc(args: list[str], log: Path, ready: str | None = None,
-          timeout: float = 120.0) -> Iterator[subprocess.Popen[bytes]]:
+def _proc(
+    args: list[str], log: Path, ready: str | None = None, timeout: float = 120.0
+) -> Iterator[subprocess.Popen[bytes]]:
     f = log.open("wb")
     p = subprocess.Popen([sys.executable, *args], cwd=ROOT, stdout=f, stderr=subprocess.STDOUT)
     try:
@@ -148,16 +169,35 @@ def bench_ingest(db: str, sites: int, diagnoses: int, tmp: Path, label: str) -> 
             k = (i * 997 + j * 31) % 20_000
             pid = f"p{j:06d}"
             site = f"s{i:03d}"
-            payloads.append((i, f"railtwin/{site}/diagnosis/{pid}",
-                             _diagnosis(site, pid, _wheel(k), T0 + j * 600.0 + i, _flat(k, j))))
+            payloads.append(
+                (
+                    i,
+                    f"railtwin/{site}/diagnosis/{pid}",
+                    _diagnosis(site, pid, _wheel(k), T0 + j * 600.0 + i, _flat(k, j)),
+                )
+            )
     n = len(payloads)
-    with _proc(router_command(router), tmp / f"router-{label}.log"), \
-            _wait_router(router), \
-            _proc(["-m", "service.cli.fleet", "serve", "--mode", "client", "--connect", router,
-                   "--db", db, "--no-catch-up"], tmp / f"fleet-{label}.log",
-                  ready="fleet: ready") as fleet:
-        sessions = [zenoh.open(build_config(connect=[router], mode="client"))
-                    for _ in range(sites)]
+    with (
+        _proc(router_command(router), tmp / f"router-{label}.log"),
+        _wait_router(router),
+        _proc(
+            [
+                "-m",
+                "service.cli.fleet",
+                "serve",
+                "--mode",
+                "client",
+                "--connect",
+                router,
+                "--db",
+                db,
+                "--no-catch-up",
+            ],
+            tmp / f"fleet-{label}.log",
+            ready="fleet: ready",
+        ) as fleet,
+    ):
+        sessions = [zenoh.open(build_config(connect=[router], mode="client")) for _ in range(sites)]
         try:
             pubs: dict[str, Any] = {}
             for i, key, _ in payloads[:sites]:  # one per site, to see the fleet matched
@@ -183,14 +223,22 @@ def bench_ingest(db: str, sites: int, diagnoses: int, tmp: Path, label: str) -> 
         finally:
             for s in sessions:
                 s.close()
-    return {"db": label, "sites": sites, "diagnoses": n, "stored": count,
-            "published_per_s": n / t_pub, "stored_per_s": count / elapsed,
-            "seconds": elapsed, "fleet_rss_mb": mem.get("VmRSS"),
-            "fleet_peak_rss_mb": mem.get("VmHWM")}
+    return {
+        "db": label,
+        "sites": sites,
+        "diagnoses": n,
+        "stored": count,
+        "published_per_s": n / t_pub,
+        "stored_per_s": count / elapsed,
+        "seconds": elapsed,
+        "fleet_rss_mb": mem.get("VmRSS"),
+        "fleet_peak_rss_mb": mem.get("VmHWM"),
+    }
 
 
-def bench_query(db: str, rows: int, wheels: int, tmp: Path, label: str,
-                samples: int = 500) -> dict[str, Any]:
+def bench_query(
+    db: str, rows: int, wheels: int, tmp: Path, label: str, samples: int = 500
+) -> dict[str, Any]:
     import zenoh
 
     from service.fleet.entry import entry_from_payload
@@ -212,13 +260,28 @@ def bench_query(db: str, rows: int, wheels: int, tmp: Path, label: str,
             flat = _flat(k, n)
             w = _wheel(k)
             v, ws, side = w.split("/")
-            batch.append(template.__class__(
-                f"s{k % 100:03d}", f"p{r:08d}", w, v, int(ws), side, T0 + n * 3600.0 + k,
-                "ok" if flat is None else "watch", None if flat is None else "flat",
-                None if flat is None else flat * 1e-3,
-                None if flat is None else (flat - 2) * 1e-3,
-                None if flat is None else (flat + 2) * 1e-3, 152345.6, 254321.0, 30.0, None,
-                T0, template.body))
+            batch.append(
+                template.__class__(
+                    f"s{k % 100:03d}",
+                    f"p{r:08d}",
+                    w,
+                    v,
+                    int(ws),
+                    side,
+                    T0 + n * 3600.0 + k,
+                    "ok" if flat is None else "watch",
+                    None if flat is None else "flat",
+                    None if flat is None else flat * 1e-3,
+                    None if flat is None else (flat - 2) * 1e-3,
+                    None if flat is None else (flat + 2) * 1e-3,
+                    152345.6,
+                    254321.0,
+                    30.0,
+                    None,
+                    T0,
+                    template.body,
+                )
+            )
         store.bulk_insert(batch)
         made += len(batch)
     t_load = time.perf_counter() - t_load
@@ -239,31 +302,47 @@ def bench_query(db: str, rows: int, wheels: int, tmp: Path, label: str,
     store.close()
     router = free_tcp_endpoint()
     zen_t: list[float] = []
-    with _proc(["-m", "service.cli.fleet", "serve", "--listen", router, "--db", db,
-                "--no-catch-up"], tmp / f"fleet-query-{label}.log", ready="fleet: ready") as fleet, \
-            zenoh.open(build_config(connect=[router])) as client:
+    with (
+        _proc(
+            ["-m", "service.cli.fleet", "serve", "--listen", router, "--db", db, "--no-catch-up"],
+            tmp / f"fleet-query-{label}.log",
+            ready="fleet: ready",
+        ) as fleet,
+        zenoh.open(build_config(connect=[router])) as client,
+    ):
         for i in range(samples + 20):
             w = flat_wheel if i % 10 == 0 else _wheel(rng.randrange(wheels))
             t = time.perf_counter()
-            replies = [r for r in client.get(f"railtwin/fleet/wheel/{w}", timeout=10.0)
-                       if r.ok is not None]
+            replies = [
+                r for r in client.get(f"railtwin/fleet/wheel/{w}", timeout=10.0) if r.ok is not None
+            ]
             dt = time.perf_counter() - t
             assert len(replies) == 1, w
             if i >= 20:  # the first ones warm the route up
                 zen_t.append(dt)
         mem = _rss(fleet.pid)
     ms = 1e3
-    return {"db": label, "rows": rows, "wheels": wheels, "per_wheel": per_wheel,
-            "load_seconds": t_load,
-            "history_p50_ms": _pct(hist_t, 0.5) * ms, "history_p99_ms": _pct(hist_t, 0.99) * ms,
-            "document_p50_ms": _pct(doc_t, 0.5) * ms, "document_p99_ms": _pct(doc_t, 0.99) * ms,
-            "zenoh_p50_ms": _pct(zen_t, 0.5) * ms, "zenoh_p99_ms": _pct(zen_t, 0.99) * ms,
-            "fleet_rss_mb": mem.get("VmRSS"), "fleet_peak_rss_mb": mem.get("VmHWM")}
+    return {
+        "db": label,
+        "rows": rows,
+        "wheels": wheels,
+        "per_wheel": per_wheel,
+        "load_seconds": t_load,
+        "history_p50_ms": _pct(hist_t, 0.5) * ms,
+        "history_p99_ms": _pct(hist_t, 0.99) * ms,
+        "document_p50_ms": _pct(doc_t, 0.5) * ms,
+        "document_p99_ms": _pct(doc_t, 0.99) * ms,
+        "zenoh_p50_ms": _pct(zen_t, 0.5) * ms,
+        "zenoh_p99_ms": _pct(zen_t, 0.99) * ms,
+        "fleet_rss_mb": mem.get("VmRSS"),
+        "fleet_peak_rss_mb": mem.get("VmHWM"),
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m benchmarks.fleet_bench",
-                                description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(
+        prog="python -m benchmarks.fleet_bench", description=__doc__.split("\n")[0]
+    )
     p.add_argument("--sites", type=int, default=100)
     p.add_argument("--diagnoses", type=int, default=20_000)
     p.add_argument("--rows", type=int, default=1_000_000)
@@ -275,26 +354,33 @@ def main(argv: list[str] | None = None) -> int:
     results: dict[str, Any] = {"load_before": os.getloadavg(), "ingest": [], "query": []}
     try:
         kinds: list[tuple[str, Callable[[], str]]] = [
-            ("sqlite", lambda: str(tmp / f"fleet-{time.monotonic_ns()}.sqlite"))]
+            ("sqlite", lambda: str(tmp / f"fleet-{time.monotonic_ns()}.sqlite"))
+        ]
         with _postgres(tmp) if not a.skip_postgres else _nullpg() as fresh_pg:
             if fresh_pg is not None:
                 kinds.append(("postgresql", fresh_pg))
             for label, make in kinds:
                 r = bench_ingest(make(), a.sites, a.diagnoses, tmp, label)
                 results["ingest"].append(r)
-                print(f"ingest  {label:<10} {r['stored']}/{r['diagnoses']} diagnoses from "
-                      f"{r['sites']} sites: {r['stored_per_s']:.0f} stored/s (published "
-                      f"{r['published_per_s']:.0f}/s); fleet RSS {r['fleet_rss_mb']:.0f} MB "
-                      f"(peak {r['fleet_peak_rss_mb']:.0f})", flush=True)
+                print(
+                    f"ingest  {label:<10} {r['stored']}/{r['diagnoses']} diagnoses from "
+                    f"{r['sites']} sites: {r['stored_per_s']:.0f} stored/s (published "
+                    f"{r['published_per_s']:.0f}/s); fleet RSS {r['fleet_rss_mb']:.0f} MB "
+                    f"(peak {r['fleet_peak_rss_mb']:.0f})",
+                    flush=True,
+                )
             for label, make in kinds:
                 q = bench_query(make(), a.rows, a.wheels, tmp, label)
                 results["query"].append(q)
-                print(f"query   {label:<10} {q['rows']} rows, {q['per_wheel']} per wheel (loaded "
-                      f"in {q['load_seconds']:.0f} s): history p50 {q['history_p50_ms']:.2f} ms "
-                      f"p99 {q['history_p99_ms']:.2f} ms; document p99 "
-                      f"{q['document_p99_ms']:.2f} ms; through Zenoh p50 "
-                      f"{q['zenoh_p50_ms']:.2f} ms p99 {q['zenoh_p99_ms']:.2f} ms; fleet RSS "
-                      f"{q['fleet_rss_mb']:.0f} MB", flush=True)
+                print(
+                    f"query   {label:<10} {q['rows']} rows, {q['per_wheel']} per wheel (loaded "
+                    f"in {q['load_seconds']:.0f} s): history p50 {q['history_p50_ms']:.2f} ms "
+                    f"p99 {q['history_p99_ms']:.2f} ms; document p99 "
+                    f"{q['document_p99_ms']:.2f} ms; through Zenoh p50 "
+                    f"{q['zenoh_p50_ms']:.2f} ms p99 {q['zenoh_p99_ms']:.2f} ms; fleet RSS "
+                    f"{q['fleet_rss_mb']:.0f} MB",
+                    flush=True,
+                )
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     results["load_after"] = os.getloadavg()

@@ -113,17 +113,26 @@ def passages(n: int, prefix: str) -> list[bytes]:
         if i % 20 == 19:
             out.append(b'{"passage_id": "%s-bad%d", "speed": "fast"}' % (prefix.encode(), i))
             continue
-        p = WheelPassage(passage_id=f"{prefix}-{i}", train_id=prefix, axle_index=i % 100,
-                         side="right", timestamp=time.time(), speed=44.4,
-                         load=50e3 + 100 * (i % 50), mass=600.0, radius=0.46)
+        p = WheelPassage(
+            passage_id=f"{prefix}-{i}",
+            train_id=prefix,
+            axle_index=i % 100,
+            side="right",
+            timestamp=time.time(),
+            speed=44.4,
+            load=50e3 + 100 * (i % 50),
+            mass=600.0,
+            radius=0.46,
+        )
         out.append(p.model_dump_json().encode())
     return out
 
 
 def answered_count(collector: Collector) -> int:
     with collector._lock:  # the subscriber's thread adds to it
-        return (sum(o.result_at is not None for o in collector.outcomes.values())
-                + len(collector.errors))
+        return sum(o.result_at is not None for o in collector.outcomes.values()) + len(
+            collector.errors
+        )
 
 
 def burst(n: int, rounds: int, tmp: Path) -> dict[str, Any]:
@@ -132,9 +141,10 @@ def burst(n: int, rounds: int, tmp: Path) -> dict[str, Any]:
     site = load_site(SITE)
     keys = SiteKeys(site.site_id)
     endpoint = free_tcp_endpoint()
-    with ServiceProcess(SITE, listen=endpoint, recordings=tmp / "burst",
-                        start_timeout=900.0) as svc, \
-            open_session(build_config(connect=[endpoint])) as session:
+    with (
+        ServiceProcess(SITE, listen=endpoint, recordings=tmp / "burst", start_timeout=900.0) as svc,
+        open_session(build_config(connect=[endpoint])) as session,
+    ):
         assert svc.proc is not None
         root = svc.proc.pid
         collector = Collector(keys, decode_results=False)
@@ -174,20 +184,30 @@ def burst(n: int, rounds: int, tmp: Path) -> dict[str, Any]:
     total = n * rounds
     journal_left = journal_bytes(tmp / "burst")  # the service has stopped
     series = rss_series(samples, total, points=10)
-    half = (round_end[len(round_end) // 2 - 1] if len(round_end) >= 2
-            else next((m for a, m in samples if a >= total // 2), start_rss))
+    half = (
+        round_end[len(round_end) // 2 - 1]
+        if len(round_end) >= 2
+        else next((m for a, m in samples if a >= total // 2), start_rss)
+    )
     end = round_end[-1] if round_end else start_rss
-    return {"sent": total, "results": results, "rejected": rejected, "answered": answered,
-            "seconds": round(elapsed, 1), "passages_per_s": round(results / elapsed, 1),
-            "rss_start_mb": rounded(start_rss),
-            "rss_peak_mb": round(max((sum(m.values()) for _, m in samples), default=0.0)),
-            "rss_at_half_mb": rounded(half), "rss_end_mb": rounded(end),
-            "rss_after_each_round_mb": [rounded(m) for m in round_end],
-            "rss_every_tenth_mb": series,
-            "growth_second_half_mb": round(sum(end.values()) - sum(half.values()), 1),
-            "journal_peak_mb": round(max(journal, default=0) / 2**20, 1),
-            "journal_after_stop_bytes": journal_left,
-            "recorder_notes": [line for line in svc.lines if "recording failures" in line]}
+    return {
+        "sent": total,
+        "results": results,
+        "rejected": rejected,
+        "answered": answered,
+        "seconds": round(elapsed, 1),
+        "passages_per_s": round(results / elapsed, 1),
+        "rss_start_mb": rounded(start_rss),
+        "rss_peak_mb": round(max((sum(m.values()) for _, m in samples), default=0.0)),
+        "rss_at_half_mb": rounded(half),
+        "rss_end_mb": rounded(end),
+        "rss_after_each_round_mb": [rounded(m) for m in round_end],
+        "rss_every_tenth_mb": series,
+        "growth_second_half_mb": round(sum(end.values()) - sum(half.values()), 1),
+        "journal_peak_mb": round(max(journal, default=0) / 2**20, 1),
+        "journal_after_stop_bytes": journal_left,
+        "recorder_notes": [line for line in svc.lines if "recording failures" in line],
+    }
 
 
 def journal_bytes(directory: Path) -> int:
@@ -203,8 +223,9 @@ def rounded(m: dict[str, float]) -> dict[str, float]:
     return {**{k: round(v, 1) for k, v in sorted(m.items())}, "total": round(sum(m.values()), 1)}
 
 
-def rss_series(samples: list[tuple[int, dict[str, float]]], total: int,
-               points: int) -> list[dict[str, Any]]:
+def rss_series(
+    samples: list[tuple[int, dict[str, float]]], total: int, points: int
+) -> list[dict[str, Any]]:
     """The first sample at or after each ``total/points`` passages answered."""
     out: list[dict[str, Any]] = []
     for k in range(1, points + 1):
@@ -224,6 +245,7 @@ def kill_mid_stream(n: int, tmp: Path) -> dict[str, float]:
     svc.start()
     received: list[tuple[str, float]] = []
     with open_session(build_config(connect=[endpoint])) as session:
+
         def on_result(sample: object) -> None:
             key = str(sample.key_expr)  # type: ignore[attr-defined]
             if "/result/" in key:
@@ -256,22 +278,35 @@ def kill_mid_stream(n: int, tmp: Path) -> dict[str, float]:
     got = {pid for pid, _ in received}
     lost_results = got - results
     late = [t for pid, t in received if pid in lost_results]
-    return {"sent": n, "processes_killed": len(pids), "results_received": len(got),
-            "inputs_in_cut_mcap": cut_inputs, "inputs_recovered": len(inputs),
-            "inputs_from_journal_only": report.from_journal,
-            "journal_parts_left": len(journals), "journal_left_mb": round(journal_mb, 1),
-            "results_received_not_in_log": len(lost_results),
-            "of_which_received_in_last_s_before_kill": sum(killed_at - t <= 1.0 for t in late),
-            "answered_inputs_missing_from_log": len(got - inputs)}
+    return {
+        "sent": n,
+        "processes_killed": len(pids),
+        "results_received": len(got),
+        "inputs_in_cut_mcap": cut_inputs,
+        "inputs_recovered": len(inputs),
+        "inputs_from_journal_only": report.from_journal,
+        "journal_parts_left": len(journals),
+        "journal_left_mb": round(journal_mb, 1),
+        "results_received_not_in_log": len(lost_results),
+        "of_which_received_in_last_s_before_kill": sum(killed_at - t <= 1.0 for t in late),
+        "answered_inputs_missing_from_log": len(got - inputs),
+    }
 
 
 def main() -> int:
-    p = argparse.ArgumentParser(prog="python -m benchmarks.soak", description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(
+        prog="python -m benchmarks.soak", description=__doc__.split("\n")[0]
+    )
     p.add_argument("--burst", type=int, default=5_000, help="passages per round")
-    p.add_argument("--rounds", type=int, default=4,
-                   help="send the burst this many times to the same service")
-    p.add_argument("--max-growth-mb", type=float, default=48.0,
-                   help="RSS growth of the whole tree allowed over the second half")
+    p.add_argument(
+        "--rounds", type=int, default=4, help="send the burst this many times to the same service"
+    )
+    p.add_argument(
+        "--max-growth-mb",
+        type=float,
+        default=48.0,
+        help="RSS growth of the whole tree allowed over the second half",
+    )
     p.add_argument("--kill-after", type=int, default=2_000)
     p.add_argument("--skip-kill", action="store_true", help="only the burst")
     a = p.parse_args()
@@ -281,23 +316,34 @@ def main() -> int:
         print("burst:", json.dumps(b, indent=1), flush=True)
         growth = b["growth_second_half_mb"]
         if b["answered"] != b["sent"] or growth > a.max_growth_mb:
-            print(f"soak FAILED: answered {b['answered']} of {b['sent']}; the service's "
-                  f"processes grew by {growth:.0f} MB over the second half of the burst "
-                  f"(limit {a.max_growth_mb:g} MB)", flush=True)
+            print(
+                f"soak FAILED: answered {b['answered']} of {b['sent']}; the service's "
+                f"processes grew by {growth:.0f} MB over the second half of the burst "
+                f"(limit {a.max_growth_mb:g} MB)",
+                flush=True,
+            )
             return 1
-        print(f"soak: memory bounded: {growth:+.0f} MB over the second half of "
-              f"{b['sent']} passages (limit {a.max_growth_mb:g} MB)", flush=True)
+        print(
+            f"soak: memory bounded: {growth:+.0f} MB over the second half of "
+            f"{b['sent']} passages (limit {a.max_growth_mb:g} MB)",
+            flush=True,
+        )
         if a.skip_kill:
             return 0
         k = kill_mid_stream(a.kill_after, tmp)
         print("kill -9:", json.dumps(k, indent=1), flush=True)
         valid = sum(1 for i in range(a.kill_after) if i % 20 != 19)
         if k["results_received_not_in_log"] or k["answered_inputs_missing_from_log"]:
-            print("soak FAILED: the recovered log lacks results or inputs the service had "
-                  "answered", flush=True)
+            print(
+                "soak FAILED: the recovered log lacks results or inputs the service had answered",
+                flush=True,
+            )
             return 1
-        print(f"soak: kill -9 recovered {k['inputs_recovered']:.0f} of {valid} valid inputs "
-              f"sent and every result received", flush=True)
+        print(
+            f"soak: kill -9 recovered {k['inputs_recovered']:.0f} of {valid} valid inputs "
+            f"sent and every result received",
+            flush=True,
+        )
     return 0
 
 

@@ -58,7 +58,8 @@ class MeasuredPassage(VersionedMessage):
     sample_rate: Positive = Field(le=1e6, description="samples per second, Hz")
     t_start: Finite = Field(description="time of sample 0, s (t = 0: wheel centre at x = 0)")
     force: list[Finite] = Field(
-        min_length=MIN_MEASURED_SAMPLES, max_length=MAX_MEASURED_SAMPLES,
+        min_length=MIN_MEASURED_SAMPLES,
+        max_length=MAX_MEASURED_SAMPLES,
         description="measured vertical wheel–rail force, N; 16 to 2 000 000 samples (the whole "
         "payload at most 64 MiB)",
     )
@@ -104,12 +105,13 @@ class Diagnosis(VersionedMessage):
     site_id: Identifier
     passage_id: Identifier
     wheel: WheelRef | None = Field(
-        default=None, description="the passage's wheel, echoed; null when the site did not "
-        "identify it"
+        default=None,
+        description="the passage's wheel, echoed; null when the site did not identify it",
     )
     timestamp: Finite | None = Field(
-        default=None, description="the passage's timestamp, echoed, UNIX s; always set by 1.1 "
-        "producers, absent only in 1.0 messages"
+        default=None,
+        description="the passage's timestamp, echoed, UNIX s; always set by 1.1 "
+        "producers, absent only in 1.0 messages",
     )
     flat: FlatFinding | None = Field(description="null when no flat is found")
     verdict: Verdict
@@ -169,7 +171,8 @@ class DiagnosisConfig(StrictModel):
     )
     sensor_lowpass_order: int = Field(default=2, ge=1, le=8, description="its order")
     sample_rate: Positive | None = Field(
-        default=None, le=1e6,
+        default=None,
+        le=1e6,
         description="the site's measuring rate, Hz; a measurement at another rate is refused "
         "(absent: any rate)",
     )
@@ -184,14 +187,17 @@ class DiagnosisConfig(StrictModel):
         default=DEFAULT_REMOVE_LENGTH, description="flat length, m (Trafikverket)"
     )
     pairing_timeout: Positive = Field(
-        default=10.0, le=3600.0,
+        default=10.0,
+        le=3600.0,
         description="s a measurement (or passage) waits for its partner before a ServiceError",
     )
 
     @model_validator(mode="after")
     def _ordered(self) -> DiagnosisConfig:
         if not self.watch_force <= self.inspect_force <= self.remove_force:
-            raise field_error("inspect_force", "force limits must satisfy watch <= inspect <= remove")
+            raise field_error(
+                "inspect_force", "force limits must satisfy watch <= inspect <= remove"
+            )
         if not self.watch_length <= self.inspect_length <= self.remove_length:
             raise field_error(
                 "inspect_length", "length limits must satisfy watch <= inspect <= remove"

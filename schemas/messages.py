@@ -74,12 +74,16 @@ def version_problem(version: str) -> str | None:
     """Why this build cannot read a message of ``version``, or None if it can (``1.x``)."""
     shape = _VERSION_SHAPE.fullmatch(version)
     if shape is None:
-        return (f"{version[:40]!r} is not a schema version <major>.<minor> (this build "
-                f"writes {MESSAGE_SCHEMA_VERSION})")
+        return (
+            f"{version[:40]!r} is not a schema version <major>.<minor> (this build "
+            f"writes {MESSAGE_SCHEMA_VERSION})"
+        )
     if int(shape.group(1)) != MESSAGE_MAJOR:
-        return (f"schema version {version} is not supported: this build reads "
-                f"{MESSAGE_MAJOR}.x messages (it writes {MESSAGE_SCHEMA_VERSION}); another "
-                "major version may change what fields mean, so the reader must be upgraded")
+        return (
+            f"schema version {version} is not supported: this build reads "
+            f"{MESSAGE_MAJOR}.x messages (it writes {MESSAGE_SCHEMA_VERSION}); another "
+            "major version may change what fields mean, so the reader must be upgraded"
+        )
     return None
 
 
@@ -94,8 +98,13 @@ def check_message_version(version: str) -> str:
 Version = Annotated[
     str,
     AfterValidator(check_message_version),
-    WithJsonSchema({"type": "string", "pattern": VERSION_PATTERN,
-                    "description": "message schema version; readers accept any 1.x"}),
+    WithJsonSchema(
+        {
+            "type": "string",
+            "pattern": VERSION_PATTERN,
+            "description": "message schema version; readers accept any 1.x",
+        }
+    ),
 ]
 """A message's ``schema_version``: any ``1.x`` is read; kept as received."""
 
@@ -186,12 +195,16 @@ class WheelRef(MessageModel):
     (towards end 2). A wheel keeps its id whichever way the vehicle runs.
     """
 
-    vehicle_id: Identifier = Field(description="the vehicle, as the site's RFID/AEI tag reader "
-                                   "reads it; a Zenoh key chunk")
-    wheelset: int = Field(ge=1, description="wheelset number counted from the vehicle's end 1, "
-                          "1-based")
-    side: Side = Field(description="relative to the vehicle: as seen standing off end 1, "
-                       "facing the vehicle (towards end 2); not the direction of travel")
+    vehicle_id: Identifier = Field(
+        description="the vehicle, as the site's RFID/AEI tag reader reads it; a Zenoh key chunk"
+    )
+    wheelset: int = Field(
+        ge=1, description="wheelset number counted from the vehicle's end 1, 1-based"
+    )
+    side: Side = Field(
+        description="relative to the vehicle: as seen standing off end 1, "
+        "facing the vehicle (towards end 2); not the direction of travel"
+    )
 
     @property
     def id(self) -> str:
@@ -203,12 +216,16 @@ class WheelRef(MessageModel):
         """The wheel of an id ``"V/2/left"``; ``WheelIdError`` (a ValueError) saying why not."""
         parts = text.split("/")
         if len(parts) != 3:
-            raise WheelIdError(f"wheel id {text[:200]!r} is not <vehicle_id>/<wheelset>/<side>, "
-                               "e.g. 31-80-4751-123-4/2/left")
+            raise WheelIdError(
+                f"wheel id {text[:200]!r} is not <vehicle_id>/<wheelset>/<side>, "
+                "e.g. 31-80-4751-123-4/2/left"
+            )
         vehicle, wheelset, side = parts
         if not wheelset.isascii() or not wheelset.isdigit():
-            raise WheelIdError(f"wheel id {text[:200]!r}: wheelset {wheelset[:20]!r} is not a "
-                               "number (1 = the wheelset nearest the vehicle's end 1)")
+            raise WheelIdError(
+                f"wheel id {text[:200]!r}: wheelset {wheelset[:20]!r} is not a "
+                "number (1 = the wheelset nearest the vehicle's end 1)"
+            )
         try:
             return cls(vehicle_id=vehicle, wheelset=int(wheelset), side=side)  # type: ignore[arg-type]
         except ValidationError as exc:
@@ -244,14 +261,17 @@ class WheelPassage(VersionedMessage):
     passage_id: Identifier = Field(description="unique id of this passage; a Zenoh key chunk")
     train_id: Identifier = Field(description="train the wheel belongs to")
     axle_index: int = Field(ge=0, description="axle number from the front of the train, 0-based")
-    side: Side = Field(description="which rail/wheel of the axle, left or right in the "
-                       "direction of travel")
+    side: Side = Field(
+        description="which rail/wheel of the axle, left or right in the direction of travel"
+    )
     wheel: WheelRef | None = Field(
-        default=None, description="the wheel's identity, as the site reads it (its tag reader); "
+        default=None,
+        description="the wheel's identity, as the site reads it (its tag reader); "
         "null when the site cannot identify the vehicle",
     )
     direction: Direction | None = Field(
-        default=None, description="which end of the vehicle leads; with wheel, wheel.side must "
+        default=None,
+        description="which end of the vehicle leads; with wheel, wheel.side must "
         "match side (end2_leading: the same; end1_leading: swapped)",
     )
     timestamp: Finite = Field(description="when the wheel centre entered the site, UNIX s (UTC)")
@@ -270,7 +290,8 @@ class WheelPassage(VersionedMessage):
         description="wheel outline r(θ); round when not measured",
     )
     phase: Finite = Field(
-        default=0.0, description="rotation φ0 at the site's start, rad; any finite angle, taken modulo 2π"
+        default=0.0,
+        description="rotation φ0 at the site's start, rad; any finite angle, taken modulo 2π",
     )
 
     @field_validator("phase")
@@ -372,8 +393,12 @@ class FieldProblem(MessageModel):
 
 
 ErrorKind = Literal[
-    "invalid_json", "invalid_passage", "simulation_failed", "overloaded",
-    "invalid_measurement", "unpaired",
+    "invalid_json",
+    "invalid_passage",
+    "simulation_failed",
+    "overloaded",
+    "invalid_measurement",
+    "unpaired",
 ]
 
 
@@ -431,7 +456,8 @@ class RejectedInput(VersionedMessage):
     payload_base64: str = Field(description="the payload's bytes, base64")
     payload_text: str = Field(description="the payload decoded as UTF-8 (errors replaced)")
     payload_bytes: int | None = Field(
-        default=None, ge=0,
+        default=None,
+        ge=0,
         description="set when the payload was too large to keep: its size in bytes (only its "
         "first bytes are kept)",
     )
@@ -480,8 +506,7 @@ else:
         if name == "MESSAGE_MODELS":
             from schemas.diagnosis import Diagnosis, MeasuredPassage
 
-            models = {**_MESSAGE_MODELS, "MeasuredPassage": MeasuredPassage,
-                      "Diagnosis": Diagnosis}
+            models = {**_MESSAGE_MODELS, "MeasuredPassage": MeasuredPassage, "Diagnosis": Diagnosis}
             globals()["MESSAGE_MODELS"] = models
             return models
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -76,7 +76,10 @@ class SiteConfig(StrictModel):
         description="wheel-flat diagnosis: measuring chain, line speed, limits",
     )
     rtol: float = Field(
-        default=1e-8, ge=1e-14, le=1e-2, allow_inf_nan=False,
+        default=1e-8,
+        ge=1e-14,
+        le=1e-2,
+        allow_inf_nan=False,
         description="integrator relative tolerance",
     )
 
@@ -84,11 +87,10 @@ class SiteConfig(StrictModel):
     def _check(self) -> SiteConfig:
         if isinstance(self.rail, SampledRail) and len(self.rail.x) > MAX_RAIL_POINTS:
             raise field_error(
-                "rail.x", f"has {len(self.rail.x)} points, more than the {MAX_RAIL_POINTS} a "
+                "rail.x",
+                f"has {len(self.rail.x)} points, more than the {MAX_RAIL_POINTS} a "
                 "site's rail may have (resample the profile)",
             )
         if self.contact != "hertz" and self.material.yield_stress is None:
-            raise field_error(
-                "material.yield_stress", f"is required with contact {self.contact!r}"
-            )
+            raise field_error("material.yield_stress", f"is required with contact {self.contact!r}")
         return self

@@ -233,8 +233,9 @@ class DentOverlay:
         old = self.at(p)
         base_y = _base_heights(base, p)
         surface = base_y - old
-        env = _envelope(p, np.ascontiguousarray(centres), np.ascontiguousarray(bottoms),
-                        float(radius), surface)
+        env = _envelope(
+            p, np.ascontiguousarray(centres), np.ascontiguousarray(bottoms), float(radius), surface
+        )
         new = np.maximum(old, base_y - env)
         grew = np.flatnonzero(new > old + CHANGE_TOL)
         if grew.size == 0:

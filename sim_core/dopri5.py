@@ -46,8 +46,5 @@ A = np.array(
 B = A[6].copy()
 """The 5th-order weights (stages 0..5; the seventh stage has weight 0)."""
 
-E = np.array(
-    [-71 / 57600, 0.0, 71 / 16695, -71 / 1920, 17253 / 339200, -22 / 525, 1 / 40]
-)
+E = np.array([-71 / 57600, 0.0, 71 / 16695, -71 / 1920, 17253 / 339200, -22 / 525, 1 / 40])
 """The error estimator: the 5th-order minus the embedded 4th-order weights, over all 7 stages."""
-

@@ -94,7 +94,9 @@ def value_at(
 
 
 @numba.njit(cache=True, inline="always")
-def _value_of(s: float, args: tuple[int, float, float, NDArray[np.float64], Params, Table, int]) -> float:
+def _value_of(
+    s: float, args: tuple[int, float, float, NDArray[np.float64], Params, Table, int]
+) -> float:
     """``value_at`` as the root finder's f(x, args); args = (kind, t, h, coef, par, tab, hint)."""
     kind, t, h, coef, par, tab, hint = args
     g, _ = value_at(kind, s, t, h, coef, par, tab, hint)
@@ -128,7 +130,9 @@ def find_root(
     extremum's location). Every look-up starts from ``hint`` (the bracket lies in one step).
     """
     args = (kind, t, h, coef, par, tab, hint)
-    _, sb, sm = illinois_bracket(_value_of, args, sign, sa, ga, sb, gb, s_tol, g_tol, max_iter, False)
+    _, sb, sm = illinois_bracket(
+        _value_of, args, sign, sa, ga, sb, gb, s_tol, g_tol, max_iter, False
+    )
     return sb, sm, hint
 
 
@@ -387,7 +391,20 @@ def extremum_in(
     """
     sign = -1.0 if fa > 0.0 else 1.0
     _, sm, hint = find_root(
-        as_int(kind), sign, 0.0, sign * fa, 1.0, sign * fb, t, h, coef, par, tab, 1e-11 / h, g_tol,
-        as_int(60), hint,
+        as_int(kind),
+        sign,
+        0.0,
+        sign * fa,
+        1.0,
+        sign * fb,
+        t,
+        h,
+        coef,
+        par,
+        tab,
+        1e-11 / h,
+        g_tol,
+        as_int(60),
+        hint,
     )
     return sm, hint

@@ -49,8 +49,7 @@ def constraint_for(
 ) -> ConstraintTable:
     """The table a passage over [x_start, x_end] needs: the exact constraint or the profile."""
     how = TableChoice(phase, constraint, curvature_stiffness)
-    return ConstraintTables().table(wheel, DentedRail.of(rail, x_start, x_end), x_start, x_end,
-                                    how)
+    return ConstraintTables().table(wheel, DentedRail.of(rail, x_start, x_end), x_start, x_end, how)
 
 
 def simulate_passes(
@@ -86,6 +85,8 @@ def simulate_passes(
     assert done is not None
     plastic = spec.contact.law == ContactLaw.HERTZ_PLASTIC
     return MultiPassOutput(
-        last=done.output, summaries=summaries,
-        rail_after=current.profile if plastic else None, last_table=done.table,
+        last=done.output,
+        summaries=summaries,
+        rail_after=current.profile if plastic else None,
+        last_table=done.table,
     )

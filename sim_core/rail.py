@@ -41,7 +41,12 @@ RAIL_SAMPLED = 3
 RailKind = Literal["flat", "cosine", "step", "sampled"]
 """The kinds of rail profile (CONTRACT.md)."""
 
-_KIND_CODES: dict[str, int] = {"flat": RAIL_FLAT, "cosine": RAIL_COSINE, "step": RAIL_STEP, "sampled": RAIL_SAMPLED}
+_KIND_CODES: dict[str, int] = {
+    "flat": RAIL_FLAT,
+    "cosine": RAIL_COSINE,
+    "step": RAIL_STEP,
+    "sampled": RAIL_SAMPLED,
+}
 
 
 def _empty() -> NDArray[np.float64]:

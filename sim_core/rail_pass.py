@@ -84,9 +84,7 @@ class TableChoice:
 
     def __post_init__(self) -> None:
         if self.constraint not in ("exact", "profile"):
-            raise ValueError(
-                f"constraint must be 'exact' or 'profile', got {self.constraint!r}"
-            )
+            raise ValueError(f"constraint must be 'exact' or 'profile', got {self.constraint!r}")
 
 
 EXACT = TableChoice()
@@ -104,9 +102,7 @@ class DentedRail:
     changes: tuple[tuple[float, float], ...] = ()
     """The stretches whose heights the last ``len(changes)`` revisions changed, oldest first
     (at most ``KEPT_CHANGES``; a restored rail knows none)."""
-    _profile: list[RailProfile] = field(
-        default_factory=list, init=False, repr=False, compare=False
-    )
+    _profile: list[RailProfile] = field(default_factory=list, init=False, repr=False, compare=False)
 
     @classmethod
     def of(cls, base: RailProfile, x_start: float, x_end: float) -> DentedRail:
@@ -183,12 +179,19 @@ def splice(table: ConstraintTable, window: ConstraintTable, a: float, b: float) 
         return np.concatenate((t[lo], w[inner], t[hi]))
 
     kinks = np.concatenate(
-        (table.kinks[(table.kinks < a) | (table.kinks > b)],
-         window.kinks[(window.kinks >= a) & (window.kinks <= b)])
+        (
+            table.kinks[(table.kinks < a) | (table.kinks > b)],
+            window.kinks[(window.kinks >= a) & (window.kinks <= b)],
+        )
     )
     return ConstraintTable(
-        x=cat("x"), y=cat("y"), slope_left=cat("slope_left"), slope_right=cat("slope_right"),
-        contact_x=cat("contact_x"), kinks=np.sort(kinks), period=0.0,
+        x=cat("x"),
+        y=cat("y"),
+        slope_left=cat("slope_left"),
+        slope_right=cat("slope_right"),
+        contact_x=cat("contact_x"),
+        kinks=np.sort(kinks),
+        period=0.0,
         resolution=min(table.resolution, window.resolution),
     )
 
@@ -284,8 +287,7 @@ class ConstraintTables:
         the contact, the flat wheel's tabulated on the rail's samples where it can."""
         R = wheel.nominal_radius
         table = self._round_table(R, rail, x_start, x_end)
-        for a, b in flat_zones(wheel, phase, rail.reach(R), float(table.x[0]),
-                               float(table.x[-1])):
+        for a, b in flat_zones(wheel, phase, rail.reach(R), float(table.x[0]), float(table.x[-1])):
             window = tabulate_constraint(wheel, _window_rail(rail, R, a, b), a, b, phase=phase)
             table = splice(table, window, a, b)
         return table
@@ -300,8 +302,11 @@ class ConstraintTables:
             return hit[1]
         if rail.overlay.is_empty:  # the base: a periodic table where it has one
             table = tabulate_constraint(WheelOutline.round(radius), rail.base, x_start, x_end)
-        elif (hit is not None and hit[1].period == 0.0
-              and (changes := rail.changed_since(hit[0], rail.reach(radius))) is not None):
+        elif (
+            hit is not None
+            and hit[1].period == 0.0
+            and (changes := rail.changed_since(hit[0], rail.reach(radius))) is not None
+        ):
             table = hit[1]
             for a, b in changes:
                 table = splice(table, _round_on(rail, radius, a, b), a, b)

@@ -30,13 +30,26 @@ def _os_postgres(tmp: Path) -> tuple[str, subprocess.Popen[bytes] | None] | None
         return None
     bindir = Path(bins[-1]).parent
     data = tmp / "data"
-    subprocess.run([str(bindir / "initdb"), "-D", str(data), "-U", "postgres", "--auth=trust"],
-                   check=True, capture_output=True)
+    subprocess.run(
+        [str(bindir / "initdb"), "-D", str(data), "-U", "postgres", "--auth=trust"],
+        check=True,
+        capture_output=True,
+    )
     sock = tmp / "sock"
     sock.mkdir()
-    subprocess.run([str(bindir / "pg_ctl"), "-D", str(data), "-w", "-o",
-                    f"-k {sock} -c listen_addresses=''", "start"], check=True,
-                   capture_output=True)
+    subprocess.run(
+        [
+            str(bindir / "pg_ctl"),
+            "-D",
+            str(data),
+            "-w",
+            "-o",
+            f"-k {sock} -c listen_addresses=''",
+            "start",
+        ],
+        check=True,
+        capture_output=True,
+    )
     return f"postgresql://postgres@/postgres?host={sock}", None
 
 
@@ -60,8 +73,10 @@ def pg_admin_uri() -> Iterator[str]:
         except (OSError, subprocess.CalledProcessError) as exc2:
             why += f"; OS PostgreSQL: {exc2}"
     if uri is None:
-        pytest.skip("no PostgreSQL server can be had here (pip install pgserver, or the OS "
-                    f"package postgresql as a non-root user): {why}")
+        pytest.skip(
+            "no PostgreSQL server can be had here (pip install pgserver, or the OS "
+            f"package postgresql as a non-root user): {why}"
+        )
     try:
         yield uri
     finally:
@@ -69,15 +84,17 @@ def pg_admin_uri() -> Iterator[str]:
             try:  # a throw-away server: stop it at once (a clean stop checkpoints for ~20 s)
                 from pgserver._commands import pg_ctl
 
-                pg_ctl(["-w", "stop", "-m", "immediate"], pgdata=server.pgdata,
-                       user=server.system_user)
+                pg_ctl(
+                    ["-w", "stop", "-m", "immediate"], pgdata=server.pgdata, user=server.system_user
+                )
             except Exception:
                 pass
             server.cleanup()
         else:
             for pg_ctl in glob.glob("/usr/lib/postgresql/*/bin/pg_ctl"):
-                subprocess.run([pg_ctl, "-D", str(tmp / "data"), "stop"], check=False,
-                               capture_output=True)
+                subprocess.run(
+                    [pg_ctl, "-D", str(tmp / "data"), "stop"], check=False, capture_output=True
+                )
         shutil.rmtree(tmp, ignore_errors=True)
 
 
@@ -112,41 +129,103 @@ DAY = 86400.0
 T0 = 1_790_000_000.0  # 2026-09-21
 
 
-def make_entry(site: str, pid: str, *, wheel: str | None = "V1/1/left", day: float = 0.0,
-               verdict: str = "ok", length: float | None = None, half_width: float = 0.002,
-               force_line: float | None = None) -> Entry:
+def make_entry(
+    site: str,
+    pid: str,
+    *,
+    wheel: str | None = "V1/1/left",
+    day: float = 0.0,
+    verdict: str = "ok",
+    length: float | None = None,
+    half_width: float = 0.002,
+    force_line: float | None = None,
+) -> Entry:
     """An Entry as a Diagnosis of that wheel would give (no zenoh, no schemas needed)."""
-    flat = None if length is None else {
-        "kind": "flat", "length": length, "depth": length**2 / 16 / 0.46, "phase": 1.0,
-        "length_low": length - half_width, "length_high": length + half_width}
-    body = {"site_id": site, "passage_id": pid, "flat": flat, "verdict": verdict,
-            "reasons": [] if verdict == "ok" else [f"{verdict} reason"],
-            "peak_force_measured": 150e3, "peak_force_at_line_speed": force_line}
+    flat = (
+        None
+        if length is None
+        else {
+            "kind": "flat",
+            "length": length,
+            "depth": length**2 / 16 / 0.46,
+            "phase": 1.0,
+            "length_low": length - half_width,
+            "length_high": length + half_width,
+        }
+    )
+    body = {
+        "site_id": site,
+        "passage_id": pid,
+        "flat": flat,
+        "verdict": verdict,
+        "reasons": [] if verdict == "ok" else [f"{verdict} reason"],
+        "peak_force_measured": 150e3,
+        "peak_force_at_line_speed": force_line,
+    }
     import json
 
     vehicle, wheelset, side = wheel.split("/") if wheel else (None, None, None)
     t = T0 + day * DAY
-    return Entry(site, pid, wheel, vehicle, int(wheelset) if wheelset else None, side, t,
-                 verdict, None if flat is None else "flat", length,
-                 None if flat is None else flat["length_low"],
-                 None if flat is None else flat["length_high"], 150e3, force_line, None, None,
-                 time.time(), json.dumps(body))
+    return Entry(
+        site,
+        pid,
+        wheel,
+        vehicle,
+        int(wheelset) if wheelset else None,
+        side,
+        t,
+        verdict,
+        None if flat is None else "flat",
+        length,
+        None if flat is None else flat["length_low"],
+        None if flat is None else flat["length_high"],
+        150e3,
+        force_line,
+        None,
+        None,
+        time.time(),
+        json.dumps(body),
+    )
 
 
-def diagnosis_json(site: str, pid: str, wheel: str | None, *, day: float,
-                   verdict: str = "ok", length: float | None = None,
-                   half_width: float = 0.002, force_line: float | None = 250e3) -> str:
+def diagnosis_json(
+    site: str,
+    pid: str,
+    wheel: str | None,
+    *,
+    day: float,
+    verdict: str = "ok",
+    length: float | None = None,
+    half_width: float = 0.002,
+    force_line: float | None = 250e3,
+) -> str:
     """A Diagnosis message (schema 1.1: wheel and timestamp), validated by the model."""
     from schemas.diagnosis import Diagnosis
 
-    flat = None if length is None else {
-        "kind": "flat", "length": length, "depth": length**2 / 16 / 0.46, "phase": 1.0,
-        "length_low": max(length - half_width, 0.0), "length_high": length + half_width}
+    flat = (
+        None
+        if length is None
+        else {
+            "kind": "flat",
+            "length": length,
+            "depth": length**2 / 16 / 0.46,
+            "phase": 1.0,
+            "length_low": max(length - half_width, 0.0),
+            "length_high": length + half_width,
+        }
+    )
     doc: dict[str, Any] = {
-        "site_id": site, "passage_id": pid, "timestamp": T0 + day * DAY, "flat": flat,
-        "verdict": verdict, "reasons": [] if verdict == "ok" else [f"{verdict} by test"],
-        "peak_force_measured": 150e3, "peak_force_fit": 151e3, "fit_rms": 2e3,
-        "peak_force_at_line_speed": force_line, "wall_time": 0.5,
+        "site_id": site,
+        "passage_id": pid,
+        "timestamp": T0 + day * DAY,
+        "flat": flat,
+        "verdict": verdict,
+        "reasons": [] if verdict == "ok" else [f"{verdict} by test"],
+        "peak_force_measured": 150e3,
+        "peak_force_fit": 151e3,
+        "fit_rms": 2e3,
+        "peak_force_at_line_speed": force_line,
+        "wall_time": 0.5,
     }
     if wheel is not None:
         v, ws, side = wheel.split("/")
@@ -176,16 +255,14 @@ class FakeTwin:
             self.queries.append(since)
             for t, pid, text in list(self.log):
                 if t >= since:
-                    query.reply(f"railtwin/{self.site}/diagnosis/{pid}", text,
-                                encoding=self._json)
+                    query.reply(f"railtwin/{self.site}/diagnosis/{pid}", text, encoding=self._json)
 
     def diagnose(self, pid: str, text: str, publish: bool = True) -> None:
         import json
 
         self.log.append((json.loads(text)["timestamp"], pid, text))
         if publish:
-            self.session.put(f"railtwin/{self.site}/diagnosis/{pid}", text,
-                             encoding=self._json)
+            self.session.put(f"railtwin/{self.site}/diagnosis/{pid}", text, encoding=self._json)
 
     def close(self) -> None:
         self._token.undeclare()

@@ -58,10 +58,12 @@ def python_files(package: str) -> list[Path]:
 
 
 def test_every_service_folder_has_a_rule() -> None:
-    folders = {p.name for p in (ROOT / "service").iterdir()
-               if p.is_dir() and (p / "__init__.py").exists()}
+    folders = {
+        p.name for p in (ROOT / "service").iterdir() if p.is_dir() and (p / "__init__.py").exists()
+    }
     assert folders <= set(SERVICE_MAY_IMPORT), (
-        f"service/ folders without an import rule: {sorted(folders - set(SERVICE_MAY_IMPORT))}")
+        f"service/ folders without an import rule: {sorted(folders - set(SERVICE_MAY_IMPORT))}"
+    )
     loose = sorted(p.name for p in (ROOT / "service").glob("*.py") if p.name != "__init__.py")
     assert not loose, f"modules directly in service/ (each belongs to a subsystem): {loose}"
 
@@ -75,8 +77,9 @@ def test_packages_import_only_what_they_may(package: str) -> None:
         for line, module in imports_of(path)
         if module.split(".")[0] in PACKAGES_MAY_IMPORT and module.split(".")[0] not in allowed
     ]
-    assert not bad, f"{package}/ may import only {sorted(allowed)} of the repository:\n" + \
-        "\n".join(bad)
+    assert not bad, (
+        f"{package}/ may import only {sorted(allowed)} of the repository:\n" + "\n".join(bad)
+    )
 
 
 @pytest.mark.parametrize("subsystem", sorted(SERVICE_MAY_IMPORT))
@@ -95,8 +98,9 @@ def test_service_subsystems_import_only_what_they_may(subsystem: str) -> None:
             if len(parts) == 2 and any(a.startswith(f"{target}.") for a in allowed):
                 continue  # ``from service.physics import port``: its module is checked as well
             bad.append(f"{path.relative_to(ROOT)}:{line}: {module}")
-    assert not bad, (f"service/{subsystem}/ may import only {sorted(allowed)} of service/:\n"
-                     + "\n".join(bad))
+    assert not bad, (
+        f"service/{subsystem}/ may import only {sorted(allowed)} of service/:\n" + "\n".join(bad)
+    )
 
 
 @pytest.mark.parametrize("subsystem", ["twin", "wire"])
@@ -118,7 +122,8 @@ def test_the_rules_catch_a_forbidden_import(tmp_path: Path) -> None:
         "if TYPE_CHECKING:\n    from service.physics.worker import PhysicsPool\n"
         "def f() -> None:\n    import service.cli.main\n"
         "from service.physics import port\n",
-        encoding="utf-8")
+        encoding="utf-8",
+    )
     found = {m for _, m in imports_of(source)}
     assert {"service.physics.worker", "service.cli.main", "service.physics.port"} <= found
 
@@ -128,10 +133,13 @@ def test_importing_the_twin_loads_no_physics() -> None:
     import subprocess
     import sys
 
-    code = ("import sys, service.twin.twin; "
-            "print(sorted(m for m in sys.modules if m.split('.')[0] in ('sim_core', 'numba') "
-            "or m.startswith('service.physics.') and m != 'service.physics.port' "
-            "and m != 'service.physics.measurement_error'))")
-    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True,
-                         text=True, check=True).stdout.strip()
+    code = (
+        "import sys, service.twin.twin; "
+        "print(sorted(m for m in sys.modules if m.split('.')[0] in ('sim_core', 'numba') "
+        "or m.startswith('service.physics.') and m != 'service.physics.port' "
+        "and m != 'service.physics.measurement_error'))"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True
+    ).stdout.strip()
     assert out == "[]"

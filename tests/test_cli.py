@@ -371,6 +371,7 @@ def test_batch_plumbing_own_wall_times_and_exit_2(
         return plain(wheel, rail, spec, **kw)
 
     monkeypatch.setattr(fake, "simulate_passes", simulate_passes)
+
     def warm_up() -> float:
         events.append("warm-up")
         return 0.0
@@ -508,9 +509,24 @@ def test_service_commands_register(monkeypatch: pytest.MonkeyPatch) -> None:
     assert cli.main(["hello"]) == 7
 
 
-@pytest.mark.parametrize("command", ["serve", "feed", "feed-measured", "synthesize", "replay",
-                                     "diagnose", "recover", "demo", "warm", "router", "fleet"])
-def test_every_entry_point_is_a_subcommand(command: str,
-                                           capsys: pytest.CaptureFixture[str]) -> None:
+@pytest.mark.parametrize(
+    "command",
+    [
+        "serve",
+        "feed",
+        "feed-measured",
+        "synthesize",
+        "replay",
+        "diagnose",
+        "recover",
+        "demo",
+        "warm",
+        "router",
+        "fleet",
+    ],
+)
+def test_every_entry_point_is_a_subcommand(
+    command: str, capsys: pytest.CaptureFixture[str]
+) -> None:
     code, out, _ = run_main([command, "--help"], capsys)
     assert code == 0 and out.startswith(f"usage: railtwin {command}")

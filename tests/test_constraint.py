@@ -29,11 +29,15 @@ A = 1e-4
 LAM = 0.05
 
 
-def brute_round_polyline(rail: RailProfile, x: NDArray[np.float64], half: float = 0.03, dp: float = 2e-7) -> NDArray[np.float64]:
+def brute_round_polyline(
+    rail: RailProfile, x: NDArray[np.float64], half: float = 0.03, dp: float = 2e-7
+) -> NDArray[np.float64]:
     """max over a dense p grid plus every vertex of y_r(p) + sqrt(R² - (p - x)²) - R (numpy, slow)."""
     out = np.empty(x.size)
     for i, xc in enumerate(x):
-        p = np.concatenate((np.arange(xc - half, xc + half, dp), rail.x[np.abs(rail.x - xc) < half]))
+        p = np.concatenate(
+            (np.arange(xc - half, xc + half, dp), rail.x[np.abs(rail.x - xc) < half])
+        )
         u = p - xc
         out[i] = np.max(rail.height(p) - u * u / (R + np.sqrt(R * R - u * u)))
     return out
@@ -156,8 +160,13 @@ def test_random_sampled_rail_against_brute_force() -> None:
     g = tabulate_constraint(WheelOutline.round(R), rail, 0.05, 0.45, method="general")
     xq = rng.uniform(0.06, 0.44, 2000)
     assert np.abs(g.evaluate(xq) - t.evaluate(xq)).max() < 1e-11
-    assert np.abs(np.sort(g.kinks[(g.kinks > 0.06) & (g.kinks < 0.44)])
-                  - np.sort(t.kinks[(t.kinks > 0.06) & (t.kinks < 0.44)])).max() < 1e-9
+    assert (
+        np.abs(
+            np.sort(g.kinks[(g.kinks > 0.06) & (g.kinks < 0.44)])
+            - np.sort(t.kinks[(t.kinks > 0.06) & (t.kinks < 0.44)])
+        ).max()
+        < 1e-9
+    )
 
 
 def test_measured_wheel_on_flat_rail() -> None:
@@ -227,7 +236,9 @@ def test_curvature_stiffness_scale() -> None:
 
 def test_validation_errors() -> None:
     w, r = WheelOutline.round(R), RailProfile.cosine(A, LAM)
-    with pytest.raises(ValueError, match=r"x_end must exceed x_start, got x_start=1\.0, x_end=0\.5"):
+    with pytest.raises(
+        ValueError, match=r"x_end must exceed x_start, got x_start=1\.0, x_end=0\.5"
+    ):
         tabulate_constraint(w, r, 1.0, 0.5)
     with pytest.raises(ValueError, match=r"dx must be a positive.*-0\.001"):
         tabulate_constraint(w, r, 0.0, 1.0, dx=-1e-3)
@@ -252,6 +263,8 @@ def test_timings() -> None:
     t0 = time.perf_counter()
     tabulate_constraint(w, RailProfile.flat(), 0.0, 6.0)
     flat = time.perf_counter() - t0
-    print(f"10 m sampled rail at 0.1 mm: {long_rail * 1e3:.0f} ms ({t.x.size} nodes); "
-          f"ideal flat on flat rail: {flat * 1e3:.2f} ms")
+    print(
+        f"10 m sampled rail at 0.1 mm: {long_rail * 1e3:.0f} ms ({t.x.size} nodes); "
+        f"ideal flat on flat rail: {flat * 1e3:.2f} ms"
+    )
     assert long_rail < 3.0 and flat < 0.1  # generous: the machine is shared

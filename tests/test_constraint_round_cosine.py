@@ -79,7 +79,9 @@ def test_steeper_cosines_take_the_psi_search() -> None:
     steep = RailProfile.cosine(1.05 * CURVATURE_LIMIT / (R * k * k), lam)
     wheel = WheelOutline.round(R)
     assert not supports_round_cosine(wheel, steep)
-    assert not supports_round_cosine(WheelOutline.ideal_flat(R, 0.05), RailProfile.cosine(1e-5, lam))
+    assert not supports_round_cosine(
+        WheelOutline.ideal_flat(R, 0.05), RailProfile.cosine(1e-5, lam)
+    )
     with pytest.raises(ValueError, match="curvature"):
         tabulate_round_cosine(wheel, steep, 0.0, 1.0)
     # past 1/R the wheel bridges the trough: the ψ-search's table, a kink per period

@@ -274,8 +274,11 @@ def test_an_identical_wheel_on_the_same_path_meets_exactly_the_yield_indentation
     d2_pw, _ = _indentation_on(point_wise, first, spec)
     chord = DENT_LATTICE**2 / (8.0 * ROUND.nominal_radius)
     excess, excess_pw = float(np.max(d2 - d_y)), float(np.max(d2_pw - d_y))
-    report(record_property, "second identical wheel, same path: max δ - δ_Y, envelope / "
-           "point-wise (µm)", f"{excess * 1e6:.4f} / {excess_pw * 1e6:.2f}")
+    report(
+        record_property,
+        "second identical wheel, same path: max δ - δ_Y, envelope / point-wise (µm)",
+        f"{excess * 1e6:.4f} / {excess_pw * 1e6:.2f}",
+    )
     assert excess <= chord + 1e-12
     s = float(np.max(np.abs(first.v_c))) / spec.speed
     assert float(np.min(d2 - d_y)) >= -1.5 * ROUND.nominal_radius * s**2 / 8.0
@@ -288,8 +291,11 @@ def test_identical_wheels_shake_down(record_property: Callable[[str, object], No
     spec = fig8_spec(6e8, duration=MULTI_DURATION)
     multi = simulate_passes(ROUND, RailProfile.flat(), spec, passes=30)
     grown = [s.max_dent for s in multi.summaries]
-    report(record_property, "30 identical wheels: new dent per wheel (µm)",
-           [round(g * 1e6, 3) for g in grown])
+    report(
+        record_property,
+        "30 identical wheels: new dent per wheel (µm)",
+        [round(g * 1e6, 3) for g in grown],
+    )
     assert grown[0] == pytest.approx(FIG8_DEPTHS_MM[6e8] * 1e-3, rel=0.05)
     assert all(g == 0.0 for g in grown[5:])
     assert multi.rail_after is not None
@@ -319,13 +325,17 @@ def test_spliced_tables_equal_a_whole_tabulation() -> None:
         np.testing.assert_allclose(spliced.evaluate(xq), whole.evaluate(xq), rtol=0, atol=1e-12)
         np.testing.assert_allclose(spliced.slope(xq), whole.slope(xq), rtol=0, atol=1e-8)
         inside = (whole.kinks > 0.0) & (whole.kinks < 2.0)
-        np.testing.assert_allclose(np.sort(spliced.kinks[(spliced.kinks > 0.0)
-                                                         & (spliced.kinks < 2.0)]),
-                                   whole.kinks[inside], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(
+            np.sort(spliced.kinks[(spliced.kinks > 0.0) & (spliced.kinks < 2.0)]),
+            whole.kinks[inside],
+            rtol=0,
+            atol=1e-12,
+        )
 
 
-@pytest.mark.parametrize("wheel", [WheelOutline.ideal_flat(0.46, 0.05),
-                                   WheelOutline.rounded_flat(0.46, 0.08, 0.4e-3)])
+@pytest.mark.parametrize(
+    "wheel", [WheelOutline.ideal_flat(0.46, 0.05), WheelOutline.rounded_flat(0.46, 0.08, 0.4e-3)]
+)
 def test_a_flat_wheels_table_on_a_dented_rail_is_the_whole_tabulation(
     wheel: WheelOutline,
 ) -> None:
@@ -389,8 +399,9 @@ def shaken_down(yield_hysteresis: float) -> MultiPassOutput:
     relative half-width ``yield_hysteresis``: the dents stop growing after the third."""
     spec = fig8_spec(6e8, duration=MULTI_DURATION)
     contact = dataclasses.replace(spec.contact, yield_hysteresis=yield_hysteresis)
-    return simulate_passes(ROUND, RailProfile.flat(), dataclasses.replace(spec, contact=contact),
-                           passes=5)
+    return simulate_passes(
+        ROUND, RailProfile.flat(), dataclasses.replace(spec, contact=contact), passes=5
+    )
 
 
 def test_the_yield_switch_width_bounds_the_force(
@@ -415,8 +426,11 @@ def test_the_yield_switch_width_bounds_the_force(
         assert float(out.force.max()) <= bound * (1.0 + 1e-12)
         if e > 0.0:  # the elastic branch does run up into the band above F_Y
             assert float(out.force.max()) > f_y
-            report(record_property, "shaken-down wheel: max F/F_Y - 1, bound 1.5ε",
-                   f"{out.force.max() / f_y - 1:.3g}, {1.5 * e:.3g}")
+            report(
+                record_property,
+                "shaken-down wheel: max F/F_Y - 1, bound 1.5ε",
+                f"{out.force.max() / f_y - 1:.3g}, {1.5 * e:.3g}",
+            )
         # and it presses nothing the rail would keep (below the lattice's chord error)
         chord = DENT_LATTICE**2 / (8.0 * ROUND.nominal_radius)
         assert float(out.delta.max()) - d_y < chord
@@ -433,14 +447,20 @@ def test_the_yield_switch_width_leaves_the_dents(
     on, off = shaken_down(YIELD_HYSTERESIS), shaken_down(0.0)
     grown_on = [s.max_dent for s in on.summaries]
     grown_off = [s.max_dent for s in off.summaries]
-    report(record_property, "new dent per wheel, ε = 3e-5 / 0 (µm)",
-           f"{[round(g * 1e6, 4) for g in grown_on]} / {[round(g * 1e6, 4) for g in grown_off]}")
+    report(
+        record_property,
+        "new dent per wheel, ε = 3e-5 / 0 (µm)",
+        f"{[round(g * 1e6, 4) for g in grown_on]} / {[round(g * 1e6, 4) for g in grown_off]}",
+    )
     chord = DENT_LATTICE**2 / (8.0 * ROUND.nominal_radius)
     np.testing.assert_allclose(grown_on, grown_off, rtol=0.0, atol=chord)
     assert grown_on[3:] == grown_off[3:] == [0.0, 0.0]
     assert on.rail_after is not None and off.rail_after is not None
     xs = np.union1d(on.rail_after.x, off.rail_after.x)
     diff = float(np.max(np.abs(on.rail_after.height(xs) - off.rail_after.height(xs))))
-    report(record_property, "rail after five wheels, ε = 3e-5 against 0: max |Δy| (nm)",
-           round(diff * 1e9, 2))
+    report(
+        record_property,
+        "rail after five wheels, ε = 3e-5 against 0: max |Δy| (nm)",
+        round(diff * 1e9, 2),
+    )
     assert diff < chord

@@ -39,16 +39,22 @@ R, P, M = 0.46, 80e3, 600.0
 def wheel(zeta: float = 0.0) -> WheelOnSite:
     d = derive(Material(2.14e11, 0.3), radius=R, load=P, mass=M)
     c = 2 * zeta * math.sqrt(2e8 * 150.0)
-    return WheelOnSite(M, P, R, ContactModel(ContactLaw.HERTZ, d.contact_coefficient),
-                       Foundation.compliant(150.0, 2e8, c))
+    return WheelOnSite(
+        M,
+        P,
+        R,
+        ContactModel(ContactLaw.HERTZ, d.contact_coefficient),
+        Foundation.compliant(150.0, 2e8, c),
+    )
 
 
 # --- forward model ---------------------------------------------------------------------------
 
 
 def test_sum_of_tables_is_exact_at_and_between_the_nodes_and_keeps_every_kink() -> None:
-    a = tabulate_constraint(WheelOutline.ideal_flat(R, 0.05), RailProfile.flat(), 0.0, 3.0,
-                            phase=2.0)
+    a = tabulate_constraint(
+        WheelOutline.ideal_flat(R, 0.05), RailProfile.flat(), 0.0, 3.0, phase=2.0
+    )
     b = tabulate_constraint(WheelOutline.round(R), RailProfile.cosine(2e-6, 0.06), 0.0, 3.0)
     s = add_tables(a, b, 0.2, 2.8)
     xq = np.linspace(0.21, 2.79, 20001)
@@ -77,8 +83,9 @@ def test_combined_irregularity_is_within_rail_slope_times_half_flat_of_the_exact
 def test_flat_times_put_the_flat_centre_where_the_table_has_its_kink() -> None:
     phase, v = 2.5, 30.0
     t = flat_times(R, v, phase, 0.0, 0.3)
-    table = tabulate_constraint(WheelOutline.ideal_flat(R, 0.04), RailProfile.flat(), 0.0, 9.0,
-                                phase=phase)
+    table = tabulate_constraint(
+        WheelOutline.ideal_flat(R, 0.04), RailProfile.flat(), 0.0, 9.0, phase=phase
+    )
     kinks = table.kinks_between(0.0, v * 0.3)
     assert np.allclose(t * v, kinks, atol=1e-9)
     assert np.allclose(np.diff(t), 2 * math.pi * R / v)
@@ -100,18 +107,25 @@ def test_sensor_passes_the_static_load_and_delays_a_step() -> None:
 
 def _record(flat: Flat | None, kmh: float, seed: int, zeta: float = 0.15):
     sensor = SensorModel(2000.0, 4)
-    pert = Perturbations(noise_fraction=0.03, roughness_rms=3e-6,
-                         foundation_damping=2 * zeta * math.sqrt(2e8 * 150.0),
-                         speed_error=0.008, seed=seed)
-    m = synthetic_measurement(wheel(), kmh / 3.6, flat, RailProfile.cosine(2e-6, 0.06), 6.0,
-                              1e4, sensor, pert)
+    pert = Perturbations(
+        noise_fraction=0.03,
+        roughness_rms=3e-6,
+        foundation_damping=2 * zeta * math.sqrt(2e8 * 150.0),
+        speed_error=0.008,
+        seed=seed,
+    )
+    m = synthetic_measurement(
+        wheel(), kmh / 3.6, flat, RailProfile.cosine(2e-6, 0.06), 6.0, 1e4, sensor, pert
+    )
     return m, sensor
 
 
-@pytest.mark.parametrize(("kind", "length", "kmh"), [("flat", 0.05, 100.0),
-                                                      ("rounded_flat", 0.07, 60.0)])
-def test_a_flat_is_found_with_its_length_kind_and_phase(kind: str, length: float,
-                                                        kmh: float) -> None:
+@pytest.mark.parametrize(
+    ("kind", "length", "kmh"), [("flat", 0.05, 100.0), ("rounded_flat", 0.07, 60.0)]
+)
+def test_a_flat_is_found_with_its_length_kind_and_phase(
+    kind: str, length: float, kmh: float
+) -> None:
     phase = 1.3
     flat = Flat.ideal(R, length, phase) if kind == "flat" else Flat.rounded(R, length, None, phase)
     m, sensor = _record(flat, kmh, seed=101)
@@ -139,14 +153,23 @@ def test_a_round_wheel_is_not_reported_as_flat() -> None:
 LIMITS = Limits(250e3, 350e3, 400e3, 0.03, 0.04, 0.06)
 
 
-@pytest.mark.parametrize(("peak", "line", "length", "expected"), [
-    (90e3, None, None, "ok"), (250e3, None, None, "watch"), (349.9e3, None, None, "watch"),
-    (350e3, None, None, "inspect"), (400e3, None, None, "remove"),
-    (100e3, 410e3, 0.02, "remove"), (100e3, 120e3, 0.0299, "ok"), (100e3, 120e3, 0.03, "watch"),
-    (100e3, 120e3, 0.06, "remove"),
-])
-def test_verdict_levels_at_their_edges(peak: float, line: float | None, length: float | None,
-                                       expected: str) -> None:
+@pytest.mark.parametrize(
+    ("peak", "line", "length", "expected"),
+    [
+        (90e3, None, None, "ok"),
+        (250e3, None, None, "watch"),
+        (349.9e3, None, None, "watch"),
+        (350e3, None, None, "inspect"),
+        (400e3, None, None, "remove"),
+        (100e3, 410e3, 0.02, "remove"),
+        (100e3, 120e3, 0.0299, "ok"),
+        (100e3, 120e3, 0.03, "watch"),
+        (100e3, 120e3, 0.06, "remove"),
+    ],
+)
+def test_verdict_levels_at_their_edges(
+    peak: float, line: float | None, length: float | None, expected: str
+) -> None:
     level, reasons = verdict(LIMITS, peak, line, length, line_speed=44.4)
     assert level == expected
     assert (level == "ok") == (not reasons)
@@ -162,23 +185,35 @@ def test_limits_must_be_ordered() -> None:
 # --- measured data in ----------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize(("force", "fragment"), [([], "at least 16"), ([1.0] * 15, "at least 16"),
-                                                 ([math.nan] * 20, "finite")])
+@pytest.mark.parametrize(
+    ("force", "fragment"),
+    [([], "at least 16"), ([1.0] * 15, "at least 16"), ([math.nan] * 20, "finite")],
+)
 def test_bad_measured_force_is_refused(force: list[float], fragment: str) -> None:
     with pytest.raises(ValidationError, match=fragment):
         MeasuredPassage(passage_id="p", sample_rate=1e4, t_start=0.0, force=force)
 
 
 def _passage(speed: float = 25.0) -> WheelPassage:
-    return WheelPassage(passage_id="t-a1-r", train_id="t", axle_index=1, side="right",
-                        timestamp=0.0, speed=speed, load=P, mass=M, radius=R)
+    return WheelPassage(
+        passage_id="t-a1-r",
+        train_id="t",
+        axle_index=1,
+        side="right",
+        timestamp=0.0,
+        speed=speed,
+        load=P,
+        mass=M,
+        radius=R,
+    )
 
 
 def test_measurement_checks_name_the_field() -> None:
     site = load_site(SITE)
     d = Diagnoser(site)
-    good = dict(passage_id="t-a1-r", sample_rate=1e4, t_start=0.0,
-                force=[P + i % 7 for i in range(2500)])
+    good = dict(
+        passage_id="t-a1-r", sample_rate=1e4, t_start=0.0, force=[P + i % 7 for i in range(2500)]
+    )
     with pytest.raises(MeasurementError) as e:
         d.check(_passage(), MeasuredPassage(**{**good, "sample_rate": 2e4}))  # type: ignore[arg-type]
     assert e.value.field == "sample_rate"
@@ -204,19 +239,32 @@ def test_csv_with_a_wrong_header_is_refused(tmp_path: Path) -> None:
 # --- railtwin diagnose ------------------------------------------------------------------------------
 
 
-def test_cli_diagnoses_a_flat_and_writes_the_diagnosis(tmp_path: Path,
-                                                       capsys: pytest.CaptureFixture[str]) -> None:
+def test_cli_diagnoses_a_flat_and_writes_the_diagnosis(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     site = load_site(SITE)
     passage = _passage(30.0)
     m = measure(site, passage, Flat.ideal(R, 0.06, 2.0), seed=103)
     csv = tmp_path / "m.csv"
-    np.savetxt(csv, np.column_stack([m.t, m.force]), delimiter=",", header="t_s,force_N",
-               comments="")
+    np.savetxt(
+        csv, np.column_stack([m.t, m.force]), delimiter=",", header="t_s,force_N", comments=""
+    )
     pj = tmp_path / "p.json"
     pj.write_text(passage.model_dump_json())
     out = tmp_path / "d.json"
-    code = cli_main(["diagnose", "--site", str(SITE), "--passage", str(pj), "--measured", str(csv),
-                     "--out", str(out)])
+    code = cli_main(
+        [
+            "diagnose",
+            "--site",
+            str(SITE),
+            "--passage",
+            str(pj),
+            "--measured",
+            str(csv),
+            "--out",
+            str(out),
+        ]
+    )
     assert code == 0
     table = capsys.readouterr().out
     assert "verdict" in table and "remove" in table
@@ -226,17 +274,29 @@ def test_cli_diagnoses_a_flat_and_writes_the_diagnosis(tmp_path: Path,
     # 60 mm sits on the remove_length limit: the fit may name 58 mm; the forces remove it too
     assert d.verdict == "remove" and any("(remove_" in r for r in d.reasons)
     assert d.peak_force_at_line_speed is not None and d.peak_force_at_line_speed > P
-    assert set(json.loads(out.read_text())) >= {"schema_version", "site_id", "passage_id", "flat",
-                                                "verdict", "reasons", "peak_force_measured",
-                                                "peak_force_fit", "fit_rms",
-                                                "peak_force_at_line_speed", "wall_time",
-                                                "peak_force_at_line_speed_low",
-                                                "peak_force_at_line_speed_high", "noise_level",
-                                                "fit_residual_ratio", "explained"}
+    assert set(json.loads(out.read_text())) >= {
+        "schema_version",
+        "site_id",
+        "passage_id",
+        "flat",
+        "verdict",
+        "reasons",
+        "peak_force_measured",
+        "peak_force_fit",
+        "fit_rms",
+        "peak_force_at_line_speed",
+        "wall_time",
+        "peak_force_at_line_speed_low",
+        "peak_force_at_line_speed_high",
+        "noise_level",
+        "fit_residual_ratio",
+        "explained",
+    }
 
 
-def test_cli_exit_2_and_one_line_on_a_bad_csv(tmp_path: Path,
-                                              capsys: pytest.CaptureFixture[str]) -> None:
+def test_cli_exit_2_and_one_line_on_a_bad_csv(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     csv = tmp_path / "m.csv"
     csv.write_text("t,F\n0,1\n")
     pj = tmp_path / "p.json"

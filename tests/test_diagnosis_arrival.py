@@ -22,8 +22,13 @@ RATE = 1e4
 def _wheel(zeta: float) -> WheelOnSite:
     d = derive(Material(2.14e11, 0.3), radius=R, load=P, mass=M)
     c = 2 * zeta * math.sqrt(2e8 * 150.0)
-    return WheelOnSite(M, P, R, ContactModel(ContactLaw.HERTZ, d.contact_coefficient),
-                       Foundation.compliant(150.0, 2e8, c))
+    return WheelOnSite(
+        M,
+        P,
+        R,
+        ContactModel(ContactLaw.HERTZ, d.contact_coefficient),
+        Foundation.compliant(150.0, 2e8, c),
+    )
 
 
 def test_lead_reaches_back_to_an_earlier_impact_than_the_largest() -> None:

@@ -34,14 +34,26 @@ def _tolerance(true_length: float) -> float:
 # passages the fit explains (a spread of kinds, speeds and chains); the misses of the wide
 # set are listed and explained in docs/diagnosis.md
 @pytest.mark.parametrize("case_id", ["W04", "W22", "W32", "W36"])
-def test_wide_set_passage_through_railtwin_diagnose(case_id: str, tmp_path: Path,
-                                                    capsys: pytest.CaptureFixture[str]) -> None:
+def test_wide_set_passage_through_railtwin_diagnose(
+    case_id: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     c = load_case(case_id)
     pj = tmp_path / "p.json"
     pj.write_text(c.passage.model_dump_json())
     out = tmp_path / "d.json"
-    code = cli_main(["diagnose", "--site", str(WIDE_DIR / f"{case_id}.site.toml"), "--passage",
-                     str(pj), "--measured", str(WIDE_DIR / f"{case_id}.csv"), "--out", str(out)])
+    code = cli_main(
+        [
+            "diagnose",
+            "--site",
+            str(WIDE_DIR / f"{case_id}.site.toml"),
+            "--passage",
+            str(pj),
+            "--measured",
+            str(WIDE_DIR / f"{case_id}.csv"),
+            "--out",
+            str(out),
+        ]
+    )
     assert code == 0
     capsys.readouterr()
     d = Diagnosis.model_validate_json(out.read_text())
@@ -81,13 +93,24 @@ def test_a_record_the_model_cannot_make_is_not_explained_and_says_so() -> None:
     root = Path(__file__).resolve().parents[1]
     site = load_site(root / "examples/site.toml")
     d = Diagnoser(site)
-    p = WheelPassage(passage_id="odd", train_id="t", axle_index=0, side="right", timestamp=0.0,
-                     speed=20.0, load=80e3, mass=600.0, radius=0.46)
-    m = measure(site, p, Flat.ideal(0.46, 0.03, 1.0), seed=3, noise=0.01, roughness=0.0,
-                diagnoser=d)
+    p = WheelPassage(
+        passage_id="odd",
+        train_id="t",
+        axle_index=0,
+        side="right",
+        timestamp=0.0,
+        speed=20.0,
+        load=80e3,
+        mass=600.0,
+        radius=0.46,
+    )
+    m = measure(
+        site, p, Flat.ideal(0.46, 0.03, 1.0), seed=3, noise=0.01, roughness=0.0, diagnoser=d
+    )
     f = m.force + 0.4 * p.load * np.sin(2 * np.pi * 40.0 * m.t)
-    mp = MeasuredPassage(passage_id="odd", sample_rate=m.sample_rate, t_start=m.t_start,
-                         force=f.tolist())
+    mp = MeasuredPassage(
+        passage_id="odd", sample_rate=m.sample_rate, t_start=m.t_start, force=f.tolist()
+    )
     diag, _ = d.diagnose(p, mp)
     assert diag.explained is False
     assert diag.fit_residual_ratio is not None and diag.fit_residual_ratio > EXPLAINED_RATIO
@@ -103,10 +126,13 @@ def test_a_worn_flat_depth_is_fitted() -> None:
     length, factor, kmh = 0.07, 1.25, 50.0
     flat = Flat.rounded(R, length, factor * length**2 / (16 * R), 1.0)
     sensor = SensorModel(3000.0, 2)
-    pert = Perturbations(noise_fraction=0.01, roughness_rms=0.0,
-                         foundation_damping=2 * 0.2 * math.sqrt(2e8 * 150.0), seed=11)
-    m = synthetic_measurement(wheel(), kmh / 3.6, flat, RailProfile.flat(), 6.0, 1e4, sensor,
-                              pert)
+    pert = Perturbations(
+        noise_fraction=0.01,
+        roughness_rms=0.0,
+        foundation_damping=2 * 0.2 * math.sqrt(2e8 * 150.0),
+        seed=11,
+    )
+    m = synthetic_measurement(wheel(), kmh / 3.6, flat, RailProfile.flat(), 6.0, 1e4, sensor, pert)
     est = estimate_flat(wheel(), kmh / 3.6, m.t, m.force, sensor)
     assert est.flat is not None and est.flat.kind == "rounded_flat"
     assert abs(est.flat.length - length) <= 0.1 * length
@@ -115,12 +141,26 @@ def test_a_worn_flat_depth_is_fitted() -> None:
 
 
 def test_a_diagnosis_from_before_schema_1_1_still_reads() -> None:
-    old = {"site_id": "s", "passage_id": "p", "flat": None, "verdict": "ok", "reasons": [],
-           "peak_force_measured": 8e4, "peak_force_fit": 8e4, "fit_rms": 1e3,
-           "peak_force_at_line_speed": None, "wall_time": 0.1}
+    old = {
+        "site_id": "s",
+        "passage_id": "p",
+        "flat": None,
+        "verdict": "ok",
+        "reasons": [],
+        "peak_force_measured": 8e4,
+        "peak_force_fit": 8e4,
+        "fit_rms": 1e3,
+        "peak_force_at_line_speed": None,
+        "wall_time": 0.1,
+    }
     d = Diagnosis.model_validate(old)
     assert d.explained is None and d.peak_force_at_line_speed_high is None
     props = Diagnosis.model_json_schema()["properties"]
-    assert {"noise_level", "fit_residual_ratio", "explained", "peak_force_at_line_speed_low",
-            "peak_force_at_line_speed_high"} <= set(props)
+    assert {
+        "noise_level",
+        "fit_residual_ratio",
+        "explained",
+        "peak_force_at_line_speed_low",
+        "peak_force_at_line_speed_high",
+    } <= set(props)
     assert json.loads(d.model_dump_json())["verdict"] == "ok"

@@ -39,8 +39,10 @@ def _groups() -> set[str]:
 
 
 def _shown(parser: argparse.ArgumentParser) -> set[str]:
-    return {s for a in parser._actions if a.help != argparse.SUPPRESS
-            for s in a.option_strings} - {"-h", "--help"}
+    return {s for a in parser._actions if a.help != argparse.SUPPRESS for s in a.option_strings} - {
+        "-h",
+        "--help",
+    }
 
 
 def documented(path: Path) -> dict[str, set[str]]:
@@ -81,19 +83,26 @@ def test_the_readme_lists_every_flag_of_every_command() -> None:
     for command, flags in shown.items():
         assert doc[command] == flags, (
             f"railtwin {command}: documented but not in --help: {doc[command] - flags}; "
-            f"in --help but not documented: {flags - doc[command]}")
+            f"in --help but not documented: {flags - doc[command]}"
+        )
 
 
-@pytest.mark.parametrize("path", ["docs/service.md", "deploy/zenoh/README.md",
-                                  "recordings/samples/README.md"])
+@pytest.mark.parametrize(
+    "path", ["docs/service.md", "deploy/zenoh/README.md", "recordings/samples/README.md"]
+)
 def test_other_docs_document_only_real_flags(path: str) -> None:
     shown = help_flags()
     for command, flags in documented(ROOT / path).items():
         assert command in shown, f"{path}: no command railtwin {command}"
         assert flags <= shown[command], (
-            f"{path}: railtwin {command}: not in --help: {flags - shown[command]}")
+            f"{path}: railtwin {command}: not in --help: {flags - shown[command]}"
+        )
 
 
 def test_the_parser_of_usage_lines_finds_flags() -> None:
     assert FLAG.findall("[--state DIR | --no-state] [-o RESULT.json] --site S") == [
-        "--state", "--no-state", "-o", "--site"]
+        "--state",
+        "--no-state",
+        "-o",
+        "--site",
+    ]

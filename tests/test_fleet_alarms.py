@@ -18,15 +18,25 @@ def _store() -> Store:
 def test_escalation_is_raised_once_per_level() -> None:
     s = _store()
     got = []
-    for d, verdict, length in [(0, "watch", 0.031), (1, "watch", 0.032), (2, "inspect", 0.041),
-                               (3, "watch", 0.039), (4, "inspect", 0.042)]:
-        s.insert([make_entry(f"s{d}", f"p{d}", day=d, verdict=verdict, length=length,
-                             half_width=0.01)])
-        got += [(a.kind, a.level, a.severity, a.evidence[-1])
-                for a in apply(s, "V1/1/left", LIMITS, horizon=1.0, now=T0)]
+    for d, verdict, length in [
+        (0, "watch", 0.031),
+        (1, "watch", 0.032),
+        (2, "inspect", 0.041),
+        (3, "watch", 0.039),
+        (4, "inspect", 0.042),
+    ]:
+        s.insert(
+            [make_entry(f"s{d}", f"p{d}", day=d, verdict=verdict, length=length, half_width=0.01)]
+        )
+        got += [
+            (a.kind, a.level, a.severity, a.evidence[-1])
+            for a in apply(s, "V1/1/left", LIMITS, horizon=1.0, now=T0)
+        ]
     # 1 mm/day with ±10 mm intervals: no significant trend, so escalations only
-    assert got == [("verdict_escalated", "watch", "info", "s0/p0"),
-                   ("verdict_escalated", "inspect", "warning", "s2/p2")]
+    assert got == [
+        ("verdict_escalated", "watch", "info", "s0/p0"),
+        ("verdict_escalated", "inspect", "warning", "s2/p2"),
+    ]
     a = next(r.json() for r in s.alarms() if r.level == "inspect")
     assert a["wheel"] == {"vehicle_id": "V1", "wheelset": 1, "side": "left"}
     assert "inspect reason" in a["reason"] and a["evidence"] == ["s2/p2"]
@@ -36,14 +46,20 @@ def test_forecast_alarm_within_the_horizon_only() -> None:
     s = _store()
     # 5 mm/day from 20 mm, tight intervals: remove (60 mm) on day 8, inspect on day 4
     for d in range(3):
-        s.insert([make_entry("a", f"p{d}", day=d, verdict="ok", length=0.020 + 0.005 * d,
-                             half_width=0.0005)])
+        s.insert(
+            [
+                make_entry(
+                    "a", f"p{d}", day=d, verdict="ok", length=0.020 + 0.005 * d, half_width=0.0005
+                )
+            ]
+        )
     far = apply(s, "V1/1/left", LIMITS, horizon=1 * DAY, now=T0)
     assert far == []  # inspect is 2 days after the latest diagnosis: beyond 1 day
     s.insert([make_entry("a", "p3", day=3, verdict="ok", length=0.035, half_width=0.0005)])
     near = apply(s, "V1/1/left", LIMITS, horizon=3 * DAY, now=T0)
     assert [(a.kind, a.level, a.severity) for a in near] == [
-        ("forecast_flat_length", "inspect", "info")]
+        ("forecast_flat_length", "inspect", "info")
+    ]
     f = near[0].forecast
     assert f is not None and abs(f["at"] - (T0 + 4 * DAY)) < 0.05 * DAY
     assert f["earliest"] < f["at"] < f["latest"]

@@ -11,8 +11,24 @@ from benchmarks import fleet_bench
 
 def test_tiny_fleet_bench_runs_end_to_end(tmp_path: Path) -> None:
     out = tmp_path / "r.json"
-    assert fleet_bench.main(["--sites", "4", "--diagnoses", "40", "--rows", "400",
-                             "--wheels", "20", "--skip-postgres", "--out", str(out)]) == 0
+    assert (
+        fleet_bench.main(
+            [
+                "--sites",
+                "4",
+                "--diagnoses",
+                "40",
+                "--rows",
+                "400",
+                "--wheels",
+                "20",
+                "--skip-postgres",
+                "--out",
+                str(out),
+            ]
+        )
+        == 0
+    )
     r = json.loads(out.read_text())
     ing, q = r["ingest"][0], r["query"][0]
     assert (ing["db"], ing["diagnoses"], ing["stored"]) == ("sqlite", 40, 40)

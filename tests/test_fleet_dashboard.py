@@ -43,18 +43,33 @@ def chromium() -> str:
             subprocess.run(cmd, env=env, capture_output=True, check=False)
         path = _find_chromium()
     if path is None:
-        pytest.skip("no Chromium here and it cannot be installed (needs root and apt-get: "
-                    "apt-get install chromium)")
+        pytest.skip(
+            "no Chromium here and it cannot be installed (needs root and apt-get: "
+            "apt-get install chromium)"
+        )
     return path
 
 
 def _browser(chromium: str, *args: str) -> str:
     with tempfile.TemporaryDirectory(prefix="railtwin-chromium-") as profile:
         out = subprocess.run(
-            [chromium, "--headless", "--no-sandbox", "--disable-gpu",
-             "--disable-background-networking", "--disable-component-update",
-             "--disable-sync", "--no-first-run", f"--user-data-dir={profile}", *args],
-            capture_output=True, text=True, timeout=120, check=False)
+            [
+                chromium,
+                "--headless",
+                "--no-sandbox",
+                "--disable-gpu",
+                "--disable-background-networking",
+                "--disable-component-update",
+                "--disable-sync",
+                "--no-first-run",
+                f"--user-data-dir={profile}",
+                *args,
+            ],
+            capture_output=True,
+            text=True,
+            timeout=120,
+            check=False,
+        )
     assert out.returncode == 0, out.stderr[-2000:]
     return out.stdout
 
@@ -62,11 +77,25 @@ def _browser(chromium: str, *args: str) -> str:
 @pytest.fixture
 def dashboard(tmp_path: Path) -> Iterator[str]:
     store = open_store(str(tmp_path / "fleet.sqlite"))
-    for d, site, verdict, length in [(0, "km12", "watch", 0.032), (1, "km48", "watch", 0.038),
-                                     (2, "km97", "inspect", 0.044)]:
-        store.insert([make_entry(site, f"t{d}-a1-l", day=d, verdict=verdict, length=length,
-                                 half_width=0.001, force_line=300e3 + 20e3 * d),
-                      make_entry(site, f"t{d}-a1-r", wheel="V1/1/right", day=d)])
+    for d, site, verdict, length in [
+        (0, "km12", "watch", 0.032),
+        (1, "km48", "watch", 0.038),
+        (2, "km97", "inspect", 0.044),
+    ]:
+        store.insert(
+            [
+                make_entry(
+                    site,
+                    f"t{d}-a1-l",
+                    day=d,
+                    verdict=verdict,
+                    length=length,
+                    half_width=0.001,
+                    force_line=300e3 + 20e3 * d,
+                ),
+                make_entry(site, f"t{d}-a1-r", wheel="V1/1/right", day=d),
+            ]
+        )
         apply(store, "V1/1/left", FleetLimits.defaults(), horizon=30 * DAY, now=T0 + d * DAY)
     session = zenoh.open(zenoh.Config())  # no endpoints: the pages read the store only
     svc = FleetService(session, store)
@@ -92,8 +121,9 @@ def test_pages_in_a_headless_browser(chromium: str, dashboard: str, tmp_path: Pa
     assert len(re.findall(r"<tr class=\"entry\">", page)) == 3
     svgs = re.findall(r"<svg class=\"plot\" data-quantity=\"(\w+)\".*?</svg>", page, re.S)
     assert svgs == ["flat_length", "peak_force_at_line_speed"]
-    flat_svg = re.search(r"<svg class=\"plot\" data-quantity=\"flat_length\".*?</svg>", page,
-                         re.S).group(0)  # type: ignore[union-attr]
+    flat_svg = re.search(
+        r"<svg class=\"plot\" data-quantity=\"flat_length\".*?</svg>", page, re.S
+    ).group(0)  # type: ignore[union-attr]
     trend = re.search(r'class="trend" d="([^"]+)"', flat_svg).group(1)  # type: ignore[union-attr]
     assert trend.count("L") >= 20  # the fitted line and its forecast, drawn point by point
     assert flat_svg.count('class="point"') == 3
@@ -101,8 +131,9 @@ def test_pages_in_a_headless_browser(chromium: str, dashboard: str, tmp_path: Pa
     assert 'class="crossing"' in flat_svg  # the forecast date of the remove limit
     # the page renders as pixels: the plot area is not blank
     png = tmp_path / "wheel.png"
-    _browser(chromium, f"--screenshot={png}", "--window-size=1000,900",
-             dashboard + "wheel/V1/1/left")
+    _browser(
+        chromium, f"--screenshot={png}", "--window-size=1000,900", dashboard + "wheel/V1/1/left"
+    )
     from matplotlib.image import imread
 
     img = imread(str(png))

@@ -28,8 +28,11 @@ def net(db_url: str) -> Iterator[dict[str, Any]]:
     store = open_store(db_url)
     a, b = FakeTwin(twin_s, "km12"), FakeTwin(twin_s, "km48")
     # one diagnosis made before the fleet starts: it must come by catch-up
-    a.diagnose("early", diagnosis_json("km12", "early", "V7/1/right", day=-1, verdict="ok",
-                                       length=None), publish=False)
+    a.diagnose(
+        "early",
+        diagnosis_json("km12", "early", "V7/1/right", day=-1, verdict="ok", length=None),
+        publish=False,
+    )
     svc = FleetService(fleet_s, store, horizon=30 * 86400.0)
     alarms: list[zenoh.Sample] = []
     sub = client_s.declare_subscriber("railtwin/fleet/alarm/**", alarms.append)
@@ -38,8 +41,15 @@ def net(db_url: str) -> Iterator[dict[str, Any]]:
     probe.undeclare()
     svc.start()
     try:
-        yield {"endpoint": endpoint, "svc": svc, "store": store, "a": a, "b": b,
-               "client": client_s, "alarms": alarms}
+        yield {
+            "endpoint": endpoint,
+            "svc": svc,
+            "store": store,
+            "a": a,
+            "b": b,
+            "client": client_s,
+            "alarms": alarms,
+        }
     finally:
         sub.undeclare()
         svc.stop()
@@ -52,18 +62,34 @@ def net(db_url: str) -> Iterator[dict[str, Any]]:
 
 def _publish_growing_flat(net: dict[str, Any]) -> None:
     a, b = net["a"], net["b"]
-    for day, twin, verdict, length in [(0, a, "watch", 0.031), (1, b, "watch", 0.037),
-                                       (2, a, "inspect", 0.043)]:
+    for day, twin, verdict, length in [
+        (0, a, "watch", 0.031),
+        (1, b, "watch", 0.037),
+        (2, a, "inspect", 0.043),
+    ]:
         pid = f"t{day}-a1-l"
-        twin.diagnose(pid, diagnosis_json(twin.site, pid, "V1/1/left", day=day,
-                                          verdict=verdict, length=length, half_width=0.001))
+        twin.diagnose(
+            pid,
+            diagnosis_json(
+                twin.site,
+                pid,
+                "V1/1/left",
+                day=day,
+                verdict=verdict,
+                length=length,
+                half_width=0.001,
+            ),
+        )
         # the other wheel of the axle: round
-        twin.diagnose(f"t{day}-a1-r", diagnosis_json(twin.site, f"t{day}-a1-r", "V1/1/right",
-                                                     day=day))
+        twin.diagnose(
+            f"t{day}-a1-r", diagnosis_json(twin.site, f"t{day}-a1-r", "V1/1/right", day=day)
+        )
         # days apart: each is stored before the next comes (one batch would hold them all,
         # and a wheel jumping from ok to inspect in one batch raises only the inspect alarm)
-        wait_for(lambda site=twin.site, pid=pid: net["store"].entry(site, pid) is not None,
-                 what=f"{pid} stored")
+        wait_for(
+            lambda site=twin.site, pid=pid: net["store"].entry(site, pid) is not None,
+            what=f"{pid} stored",
+        )
 
 
 def test_history_alarms_and_queries(net: dict[str, Any]) -> None:
@@ -73,15 +99,22 @@ def test_history_alarms_and_queries(net: dict[str, Any]) -> None:
     wait_for(lambda: store.count() == 7, what="7 diagnoses stored")
     hist = store.history("V1/1/left")
     assert [(e.site_id, e.verdict) for e in hist] == [
-        ("km12", "watch"), ("km48", "watch"), ("km12", "inspect")]
+        ("km12", "watch"),
+        ("km48", "watch"),
+        ("km12", "inspect"),
+    ]
     # alarms: watch on day 0; on day 1, 6 mm/day predicts inspect (40 mm) on day 1.5; on
     # day 2 the verdict is inspect, and the trend predicts remove (60 mm) on day ~5
     wait_for(lambda: len(net["alarms"]) >= 4, what="4 alarms published")
     got = [json.loads(s.payload.to_bytes()) for s in net["alarms"]]
     assert {str(s.key_expr) for s in net["alarms"]} == {"railtwin/fleet/alarm/V1/1/left"}
     kinds = [(g["kind"], g["level"]) for g in got]
-    assert kinds == [("verdict_escalated", "watch"), ("forecast_flat_length", "inspect"),
-                     ("verdict_escalated", "inspect"), ("forecast_flat_length", "remove")]
+    assert kinds == [
+        ("verdict_escalated", "watch"),
+        ("forecast_flat_length", "inspect"),
+        ("verdict_escalated", "inspect"),
+        ("forecast_flat_length", "remove"),
+    ]
     assert got[2]["evidence"] == ["km12/t2-a1-l"] and got[2]["severity"] == "warning"
     assert got[3]["evidence"] == ["km12/t0-a1-l", "km48/t1-a1-l", "km12/t2-a1-l"]
     # the wheel queryable replies on the wheel's own key; a wildcard reaches every wheel
@@ -93,8 +126,9 @@ def test_history_alarms_and_queries(net: dict[str, Any]) -> None:
     assert {"site_id", "passage_id", "timestamp", "verdict", "flat"} <= set(doc["history"][0])
     tr = doc["trend"]["flat_length"]
     assert tr["slope_per_day"] == pytest.approx(0.006, rel=1e-6)
-    keys = sorted(str(r.ok.key_expr) for r in client.get("railtwin/fleet/wheel/V1/*/*",
-                                                         timeout=5.0))
+    keys = sorted(
+        str(r.ok.key_expr) for r in client.get("railtwin/fleet/wheel/V1/*/*", timeout=5.0)
+    )
     assert keys == ["railtwin/fleet/wheel/V1/1/left", "railtwin/fleet/wheel/V1/1/right"]
     err = list(client.get("railtwin/fleet/wheel/NOPE/1/left", timeout=5.0))
     assert len(err) == 1 and err[0].err is not None
@@ -107,8 +141,9 @@ def test_history_alarms_and_queries(net: dict[str, Any]) -> None:
     assert store.count() == 7
 
 
-def test_cli_wheel_prints_table_and_json(net: dict[str, Any],
-                                         capsys: pytest.CaptureFixture[str]) -> None:
+def test_cli_wheel_prints_table_and_json(
+    net: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
     _publish_growing_flat(net)
     wait_for(lambda: net["store"].count() >= 6, what="diagnoses stored")
     base = ["--connect", net["endpoint"], "--timeout", "5"]

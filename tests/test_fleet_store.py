@@ -24,7 +24,9 @@ def test_a_diagnosis_is_stored_once(store: Store) -> None:
     assert store.insert([again, a]) == []
     hist = store.history("V1/1/left")
     assert [(e.site_id, e.verdict, e.flat_length) for e in hist] == [
-        ("km12", "watch", 0.035), ("km48", "inspect", 0.045)]
+        ("km12", "watch", 0.035),
+        ("km48", "inspect", 0.045),
+    ]
     assert store.count() == 2
     sites = {s.site_id: s for s in store.sites()}
     assert sites["km12"].diagnoses == 1 and sites["km48"].last_verdict == "inspect"
@@ -55,14 +57,30 @@ def test_migrating_an_old_database_keeps_and_backfills_its_data(db_url: str) -> 
     e1 = make_entry("km12", "p1", day=0, verdict="watch", length=0.035)
     e2 = make_entry("km12", "p2", wheel="V2/3/right", day=2, verdict="inspect", length=0.045)
     e3 = make_entry("km48", "p1", day=1, verdict="inspect", length=0.041)
-    cols = ("site_id, passage_id, wheel_id, vehicle_id, wheelset, side, timestamp, verdict, "
-            "flat_length, peak_force_measured, received_at, body")
+    cols = (
+        "site_id, passage_id, wheel_id, vehicle_id, wheelset, side, timestamp, verdict, "
+        "flat_length, peak_force_measured, received_at, body"
+    )
     with old._transaction() as cur:  # rows as the version-1 railtwin wrote them
         for e in (e1, e2, e3):
-            old._exec(cur, f"INSERT INTO diagnosis ({cols}) VALUES (?,?,?,?,?,?,?,?,?,?,?,?)",
-                      (e.site_id, e.passage_id, e.wheel_id, e.vehicle_id, e.wheelset, e.side,
-                       e.timestamp, e.verdict, e.flat_length, e.peak_force_measured,
-                       e.received_at, e.body))
+            old._exec(
+                cur,
+                f"INSERT INTO diagnosis ({cols}) VALUES (?,?,?,?,?,?,?,?,?,?,?,?)",
+                (
+                    e.site_id,
+                    e.passage_id,
+                    e.wheel_id,
+                    e.vehicle_id,
+                    e.wheelset,
+                    e.side,
+                    e.timestamp,
+                    e.verdict,
+                    e.flat_length,
+                    e.peak_force_measured,
+                    e.received_at,
+                    e.body,
+                ),
+            )
     old.close()
     new = open_store(db_url)  # opening migrates
     try:
@@ -92,8 +110,9 @@ def test_alarm_state_survives_a_restart(db_url: str) -> None:
         s.insert([make_entry("b", "p1", day=1, verdict="watch", length=0.033)])
         assert apply(s, "V1/1/left", limits, horizon=30 * DAY, now=T0 + DAY) == []
         assert len(s.alarms()) == 1
-        assert not s.add_alarm(AlarmRow("V1/1/left", "verdict_escalated", "watch", 0,
-                                         time.time(), T0, None, "{}"))
+        assert not s.add_alarm(
+            AlarmRow("V1/1/left", "verdict_escalated", "watch", 0, time.time(), T0, None, "{}")
+        )
     finally:
         s.close()
 

@@ -23,14 +23,29 @@ from service.physics.stub import StubPhysics
 from service.twin.inbound import Inbound
 from service.twin.twin import Twin
 
-SITE = SiteConfig.model_validate({
-    "site_id": "fuzz", "length": 3.0, "output_sample_rate": 2000.0, "contact": "hertz",
-    "rail": {"kind": "flat"},
-    "material": {"youngs_modulus": 2.14e11, "poisson_ratio": 0.3},
-})
-GOOD_PASSAGE = json.loads(WheelPassage(
-    passage_id="p", train_id="t", axle_index=1, side="left", timestamp=1.0, speed=30.0,
-    load=6e4, mass=600.0, radius=0.46).model_dump_json())
+SITE = SiteConfig.model_validate(
+    {
+        "site_id": "fuzz",
+        "length": 3.0,
+        "output_sample_rate": 2000.0,
+        "contact": "hertz",
+        "rail": {"kind": "flat"},
+        "material": {"youngs_modulus": 2.14e11, "poisson_ratio": 0.3},
+    }
+)
+GOOD_PASSAGE = json.loads(
+    WheelPassage(
+        passage_id="p",
+        train_id="t",
+        axle_index=1,
+        side="left",
+        timestamp=1.0,
+        speed=30.0,
+        load=6e4,
+        mass=600.0,
+        radius=0.46,
+    ).model_dump_json()
+)
 GOOD_MEASURED = {"passage_id": "p", "sample_rate": 1e4, "t_start": 0.0, "force": [6e4] * 20}
 
 
@@ -63,12 +78,12 @@ def check_answered(puts: list[tuple[str, bytes]], payload: bytes) -> None:
 
 json_values = st.recursive(
     st.none() | st.booleans() | st.integers() | st.floats(allow_nan=True) | st.text(max_size=30),
-    lambda inner: st.lists(inner, max_size=5) | st.dictionaries(st.text(max_size=10), inner,
-                                                                 max_size=5),
+    lambda inner: (
+        st.lists(inner, max_size=5) | st.dictionaries(st.text(max_size=10), inner, max_size=5)
+    ),
     max_leaves=20,
 )
-FUZZ = settings(max_examples=150, deadline=None,
-                suppress_health_check=[HealthCheck.too_slow])
+FUZZ = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 
 @FUZZ
@@ -92,9 +107,15 @@ def test_a_passage_with_one_field_replaced(field: str, value: Any) -> None:
 
 
 @FUZZ
-@given(st.one_of(st.binary(max_size=2000), json_values.map(lambda v: json.dumps(v).encode()),
-                 st.tuples(st.sampled_from(sorted(GOOD_MEASURED)), json_values).map(
-                     lambda fv: json.dumps({**GOOD_MEASURED, fv[0]: fv[1]}).encode())))
+@given(
+    st.one_of(
+        st.binary(max_size=2000),
+        json_values.map(lambda v: json.dumps(v).encode()),
+        st.tuples(st.sampled_from(sorted(GOOD_MEASURED)), json_values).map(
+            lambda fv: json.dumps({**GOOD_MEASURED, fv[0]: fv[1]}).encode()
+        ),
+    )
+)
 def test_anything_on_the_measured_key(payload: bytes) -> None:
     puts = answer_to(payload, "railtwin/fuzz/measured")
     # a valid measurement waits for its passage (no answer yet); anything else is answered

@@ -49,7 +49,9 @@ def test_rounded_flat_haversine() -> None:
     ln, d = 0.05, 0.3e-3
     w = WheelOutline.rounded_flat(R, ln, d)
     th = np.linspace(-ln / (2 * R), ln / (2 * R), 31)
-    np.testing.assert_allclose(w.radius_at(th), R - d / 2 * (1 + np.cos(2 * np.pi * R * th / ln)), atol=1e-16)
+    np.testing.assert_allclose(
+        w.radius_at(th), R - d / 2 * (1 + np.cos(2 * np.pi * R * th / ln)), atol=1e-16
+    )
     assert float(w.radius_at(np.array([0.0]))[0]) == pytest.approx(R - d, abs=1e-16)
     assert w.max_depth == d and w.min_feature_length == ln / 16
 
@@ -80,11 +82,20 @@ def test_sampled_wheel_linear_and_periodic() -> None:
         (lambda: WheelOutline.ideal_flat(R, 0.0), r"length must be a positive"),
         (lambda: WheelOutline.rounded_flat(R, 3.0, 1e-4), r"does not fit"),
         (lambda: WheelOutline.rounded_flat(R, 0.05, 0.5), r"smaller than the radius"),
-        (lambda: WheelOutline.sampled(np.array([0.0, 2.0, 1.0]), np.full(3, R)), r"strictly increasing.*theta\[1\]"),
+        (
+            lambda: WheelOutline.sampled(np.array([0.0, 2.0, 1.0]), np.full(3, R)),
+            r"strictly increasing.*theta\[1\]",
+        ),
         (lambda: WheelOutline.sampled(np.linspace(0, 7, 5), np.full(5, R)), r"less than one turn"),
-        (lambda: WheelOutline.sampled(np.linspace(0, 1, 5), np.full(4, R)), r"equal length.*\(5,\).*\(4,\)"),
+        (
+            lambda: WheelOutline.sampled(np.linspace(0, 1, 5), np.full(4, R)),
+            r"equal length.*\(5,\).*\(4,\)",
+        ),
         (lambda: WheelOutline.sampled(np.array([0.0, 1.0, np.nan]), np.full(3, R)), r"non-finite"),
-        (lambda: WheelOutline.sampled(np.array([0.0, 1.0, 2.0]), np.array([R, np.nan, R])), r"non-finite"),
+        (
+            lambda: WheelOutline.sampled(np.array([0.0, 1.0, 2.0]), np.array([R, np.nan, R])),
+            r"non-finite",
+        ),
     ],
 )
 def test_wheel_validation(call: object, match: str) -> None:
@@ -95,11 +106,15 @@ def test_wheel_validation(call: object, match: str) -> None:
 # ------------------------------------------------------------------------------ rail
 def test_rail_kinds() -> None:
     x = np.array([-1.0, 0.0, 0.0125, 0.025, 1.0])
-    np.testing.assert_allclose(RailProfile.cosine(1e-4, 0.05).height(x), 1e-4 * np.cos(2 * np.pi * x / 0.05), atol=1e-20)
+    np.testing.assert_allclose(
+        RailProfile.cosine(1e-4, 0.05).height(x), 1e-4 * np.cos(2 * np.pi * x / 0.05), atol=1e-20
+    )
     assert RailProfile.step(2e-3, 0.0).height(x).tolist() == [0.0, 2e-3, 2e-3, 2e-3, 2e-3]
     assert np.all(RailProfile.flat().height(x) == 0.0)
     s = RailProfile.sampled(np.array([0.0, 1.0, 3.0]), np.array([0.0, 1e-3, -1e-3]))
-    assert s.height(np.array([-5.0, 0.5, 2.0, 9.0])).tolist() == pytest.approx([0.0, 5e-4, 0.0, -1e-3], abs=1e-18)
+    assert s.height(np.array([-5.0, 0.5, 2.0, 9.0])).tolist() == pytest.approx(
+        [0.0, 5e-4, 0.0, -1e-3], abs=1e-18
+    )
     assert s.min_feature_length == 1.0
     assert RailProfile.cosine(1e-4, 0.05).min_feature_length == 0.05 / 16
     assert math.isinf(RailProfile.step(1e-3, 0.0).min_feature_length)
@@ -162,7 +177,9 @@ def test_random_roughness_matches_direct_sum() -> None:
     rail = random_roughness(3.0, 1e-3, k, S, seed=4)
     ph = np.random.default_rng(4).uniform(0, 2 * np.pi, 3)
     w = np.array([20.0, 145.0, 125.0])  # trapezoidal widths of the grid
-    direct = (np.sqrt(2 * S * w)[None, :] * np.cos(k[None, :] * rail.x[:, None] + ph[None, :])).sum(axis=1)
+    direct = (np.sqrt(2 * S * w)[None, :] * np.cos(k[None, :] * rail.x[:, None] + ph[None, :])).sum(
+        axis=1
+    )
     np.testing.assert_allclose(rail.y, direct, atol=1e-15)
 
 
@@ -187,7 +204,9 @@ def test_loader_parses_bundled_measurements(name: str) -> None:
     assert w.kind == "sampled" and w.nominal_radius == pytest.approx(m.circumference / (2 * np.pi))
     assert w.theta[-1] - w.theta[0] < 2 * np.pi
     # the flat (deepest point) is at θ = 0
-    assert float(w.radius_at(np.array([0.0]))[0]) == pytest.approx(w.nominal_radius - m.flat_depth, abs=1e-15)
+    assert float(w.radius_at(np.array([0.0]))[0]) == pytest.approx(
+        w.nominal_radius - m.flat_depth, abs=1e-15
+    )
     assert w.max_depth == pytest.approx(m.flat_depth)
     # from_text on the decoded payload gives the same
     m2 = WheelRoughness.from_text((DATA_DIR / name).read_bytes().decode("latin-1"))
@@ -200,7 +219,9 @@ def test_loader_rejects_malformed(tmp_path: Path) -> None:
     i = lines.index("[MeasurementData]")
     bad = [*lines]
     bad[i + 10] = "8\tabc\t"
-    with pytest.raises(ValueError, match=rf"line {i + 11}: expected '<position><TAB><deviation>'.*abc"):
+    with pytest.raises(
+        ValueError, match=rf"line {i + 11}: expected '<position><TAB><deviation>'.*abc"
+    ):
         WheelRoughness.from_text("\n".join(bad))
     trunc = "\n".join(lines[: i + 50])
     with pytest.raises(ValueError, match=r"declares 2886 measurement points but the data has 48"):

@@ -29,10 +29,17 @@ def feed(journal: InputJournal, rec: ProcessRecorder, first: int, n: int) -> Non
     for i in range(first, first + n):
         raw = record(i)
         ticket = journal.append(KEY, 1_000 + i, raw)
-        logged = RejectedInput(key=KEY, payload_base64=base64.b64encode(raw).decode(),
-                               payload_text=raw.decode())
-        rec.message(f"{KEY}/rejected", RejectedInput, logged.model_dump_json().encode(),
-                    1_000 + i, None, ticket)
+        logged = RejectedInput(
+            key=KEY, payload_base64=base64.b64encode(raw).decode(), payload_text=raw.decode()
+        )
+        rec.message(
+            f"{KEY}/rejected",
+            RejectedInput,
+            logged.model_dump_json().encode(),
+            1_000 + i,
+            None,
+            ticket,
+        )
 
 
 def wait_until(cond: Callable[[], bool], what: str, timeout: float = 60.0) -> None:
@@ -61,8 +68,9 @@ def recovered_inputs(tmp_path: Path) -> list[int]:
 def test_parts_go_once_flushed_the_journal_stays_bounded_and_ends_empty(tmp_path: Path) -> None:
     part = 4_000
     journal = InputJournal(tmp_path / "run-inputs.journal", part_bytes=part)
-    rec = ProcessRecorder(RecordingPlan(tmp_path, "run", "s", rerun=False, flush_interval=0.05),
-                          journal=journal)
+    rec = ProcessRecorder(
+        RecordingPlan(tmp_path, "run", "s", rerun=False, flush_interval=0.05), journal=journal
+    )
     biggest = 0
     for batch in range(10):
         feed(journal, rec, batch * 40, 40)  # ~10 kB a batch: 3 parts
@@ -79,8 +87,9 @@ def test_parts_go_once_flushed_the_journal_stays_bounded_and_ends_empty(tmp_path
 
 def test_kill_9_before_any_flush_the_journal_has_everything(tmp_path: Path) -> None:
     journal = InputJournal(tmp_path / "run-inputs.journal", part_bytes=4_000)
-    rec = ProcessRecorder(RecordingPlan(tmp_path, "run", "s", rerun=False, flush_interval=1e6),
-                          journal=journal)
+    rec = ProcessRecorder(
+        RecordingPlan(tmp_path, "run", "s", rerun=False, flush_interval=1e6), journal=journal
+    )
     feed(journal, rec, 0, 100)
     wait_until(lambda: rec.pending_bytes() == 0, "the child to take every message")
     kill_child(rec)  # written into a chunk never flushed; the service dies too (no close)
@@ -91,8 +100,9 @@ def test_kill_9_before_any_flush_the_journal_has_everything(tmp_path: Path) -> N
 
 def test_kill_9_after_a_flush_loses_nothing_either(tmp_path: Path) -> None:
     journal = InputJournal(tmp_path / "run-inputs.journal", part_bytes=4_000)
-    rec = ProcessRecorder(RecordingPlan(tmp_path, "run", "s", rerun=False, flush_interval=0.05),
-                          journal=journal)
+    rec = ProcessRecorder(
+        RecordingPlan(tmp_path, "run", "s", rerun=False, flush_interval=0.05), journal=journal
+    )
     feed(journal, rec, 0, 100)
     wait_until(lambda: len(journal.paths) == 1, "the flushed parts to be deleted")
     deleted = journal.parts_deleted
@@ -107,8 +117,9 @@ def test_a_record_the_mcap_never_got_keeps_its_part(tmp_path: Path) -> None:
     """A message dropped before the recorder (its ticket never comes back): its part stays,
     the parts around it go."""
     journal = InputJournal(tmp_path / "run-inputs.journal", part_bytes=1_000)
-    rec = ProcessRecorder(RecordingPlan(tmp_path, "run", "s", rerun=False, flush_interval=0.05),
-                          journal=journal)
+    rec = ProcessRecorder(
+        RecordingPlan(tmp_path, "run", "s", rerun=False, flush_interval=0.05), journal=journal
+    )
     feed(journal, rec, 0, 20)
     lost = journal.append(KEY, 1_000 + 20, record(20))  # journaled, never logged
     assert lost is not None

@@ -27,7 +27,11 @@ ROOT = Path(__file__).resolve().parents[1]
 SCHEMAS = ROOT / "schemas"
 CLIENTS = ROOT / "examples" / "clients"
 PYDANTIC_AND_ITS_DEPENDENCIES = (
-    "pydantic", "pydantic_core", "annotated_types", "typing_extensions", "typing_inspection",
+    "pydantic",
+    "pydantic_core",
+    "annotated_types",
+    "typing_extensions",
+    "typing_inspection",
 )
 HEAVY = ("numpy", "scipy", "numba", "zenoh", "mcap", "rerun", "sim_core", "service")
 
@@ -73,8 +77,13 @@ assert p.wheel == WheelRef.parse("V/1/left")
 heavy = sorted(m for m in sys.modules if m.split(".")[0] in {HEAVY!r})
 print(json.dumps({{"heavy": heavy, "file": schemas.__file__}}))
 """
-    out = subprocess.run([sys.executable, "-I", "-S", "-c", code], capture_output=True,
-                         text=True, timeout=120, check=False)
+    out = subprocess.run(
+        [sys.executable, "-I", "-S", "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
     assert out.returncode == 0, out.stderr
     got = json.loads(out.stdout)
     assert got["heavy"] == []
@@ -110,14 +119,15 @@ def test_export_writes_and_notices_drift(tmp_path: Path) -> None:
     health.write_text(json.dumps(doc))
     (tmp_path / "Gone.schema.json").write_text("{}")
     assert export.differences(tmp_path) == [
-        "not a model any more: Gone.schema.json", "differs from the model: Health.schema.json"]
+        "not a model any more: Gone.schema.json",
+        "differs from the model: Health.schema.json",
+    ]
     assert export.main(["--out", str(tmp_path), "--check"]) == 1
     export.main(["--out", str(tmp_path)])
     assert export.differences(tmp_path) == []
 
 
-CLIENT_SCRIPTS = ["send_passage.py", "watch_diagnoses.py", "wheel_history.py",
-                  "follow_alarms.py"]
+CLIENT_SCRIPTS = ["send_passage.py", "watch_diagnoses.py", "wheel_history.py", "follow_alarms.py"]
 
 
 @pytest.mark.parametrize("name", [*CLIENT_SCRIPTS, "common.py"])
@@ -125,14 +135,22 @@ def test_example_clients_are_short_and_parse(name: str) -> None:
     text = (CLIENTS / name).read_text(encoding="utf-8")
     assert len(text.splitlines()) <= 40
     assert imported_modules(CLIENTS / name) <= (
-        set(sys.stdlib_module_names) | {"zenoh", "schemas", "common"})
+        set(sys.stdlib_module_names) | {"zenoh", "schemas", "common"}
+    )
 
 
 @pytest.mark.parametrize("name", CLIENT_SCRIPTS)
 def test_example_clients_show_help(name: str) -> None:
     env = {**os.environ, "PYTHONPATH": str(ROOT)}  # as if railtwin-schemas were installed
-    out = subprocess.run([sys.executable, name, "--help"], cwd=CLIENTS, env=env,
-                         capture_output=True, text=True, timeout=120, check=False)
+    out = subprocess.run(
+        [sys.executable, name, "--help"],
+        cwd=CLIENTS,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
     assert out.returncode == 0, out.stderr
     assert out.stdout.startswith(f"usage: {name.removesuffix('.py')}")
     assert "--connect" in out.stdout and "--mode" in out.stdout
@@ -154,9 +172,25 @@ def test_send_passage_gets_its_result_from_a_twin() -> None:
     try:
         env = {**os.environ, "PYTHONPATH": str(ROOT)}
         out = subprocess.run(
-            [sys.executable, "send_passage.py", "--site", "km12", "--connect", site.endpoint,
-             "--wheel", "31-80-4751-123-4/2/left", "--direction", "end1_leading"],
-            cwd=CLIENTS, env=env, capture_output=True, text=True, timeout=120, check=False)
+            [
+                sys.executable,
+                "send_passage.py",
+                "--site",
+                "km12",
+                "--connect",
+                site.endpoint,
+                "--wheel",
+                "31-80-4751-123-4/2/left",
+                "--direction",
+                "end1_leading",
+            ],
+            cwd=CLIENTS,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=120,
+            check=False,
+        )
     finally:
         site.close()
     assert out.returncode == 0, out.stderr

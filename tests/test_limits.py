@@ -31,15 +31,27 @@ from service.wire.encoding import json_encoding
 from service.wire.keyspace import SiteKeys
 from service.wire.zenoh_session import build_config, free_tcp_endpoint
 
-SITE = SiteConfig.model_validate({
-    "site_id": "lim", "length": 6.0, "output_sample_rate": 10_000.0, "contact": "hertz",
-    "rail": {"kind": "flat"},
-    "material": {"youngs_modulus": 2.14e11, "poisson_ratio": 0.3},
-})
+SITE = SiteConfig.model_validate(
+    {
+        "site_id": "lim",
+        "length": 6.0,
+        "output_sample_rate": 10_000.0,
+        "contact": "hertz",
+        "rail": {"kind": "flat"},
+        "material": {"youngs_modulus": 2.14e11, "poisson_ratio": 0.3},
+    }
+)
 KEYS = SiteKeys(SITE.site_id)
 BASE: dict[str, Any] = {
-    "passage_id": "p0", "train_id": "t1", "axle_index": 0, "side": "right",
-    "timestamp": 1.7e9, "speed": 40.0, "load": 60e3, "mass": 500.0, "radius": 0.46,
+    "passage_id": "p0",
+    "train_id": "t1",
+    "axle_index": 0,
+    "side": "right",
+    "timestamp": 1.7e9,
+    "speed": 40.0,
+    "load": 60e3,
+    "mass": 500.0,
+    "radius": 0.46,
 }
 
 
@@ -73,7 +85,8 @@ def test_flat_must_fit_the_passage_wheel() -> None:
     assert first_field(exc.value) == "outline.length"
     with pytest.raises(ValidationError) as exc:
         WheelPassage.model_validate(
-            {**BASE, "outline": {"kind": "rounded_flat", "length": 0.05, "depth": r}})
+            {**BASE, "outline": {"kind": "rounded_flat", "length": 0.05, "depth": r}}
+        )
     assert first_field(exc.value) == "outline.depth"
     bad = sampled(64)
     bad["radius"][5] = 0.6
@@ -113,8 +126,9 @@ def test_measured_samples_edge() -> None:
         MeasuredPassage(passage_id="m", sample_rate=1e4, t_start=0.0, force=[*force, 6e4])
     assert first_field(exc.value) == "force"
     # the payload cap leaves room for the largest measurement
-    worst = len(json.dumps({"passage_id": "m" * 96, "sample_rate": 1e4, "t_start": 0.0})) + \
-        MAX_MEASURED_SAMPLES * len("-1.2345678901234567e-05, ")
+    worst = len(
+        json.dumps({"passage_id": "m" * 96, "sample_rate": 1e4, "t_start": 0.0})
+    ) + MAX_MEASURED_SAMPLES * len("-1.2345678901234567e-05, ")
     assert worst < limits.MAX_MEASURED_PAYLOAD_BYTES
 
 
@@ -154,8 +168,10 @@ def test_lowest_speed_edge() -> None:
         assert problem is not None and problem[0] == "speed"
         assert f"above {v:.6g} m/s" in problem[1]
     # the output bytes cap is not tighter than the sample cap (both hold at the edge)
-    assert limits.MAX_PASSAGE_SAMPLES * limits.OUTPUT_BYTES_PER_SAMPLE <= \
-        limits.MAX_PASSAGE_OUTPUT_BYTES
+    assert (
+        limits.MAX_PASSAGE_SAMPLES * limits.OUTPUT_BYTES_PER_SAMPLE
+        <= limits.MAX_PASSAGE_OUTPUT_BYTES
+    )
 
 
 # --- the service's limits, on a twin with the stub physics ---------------------------------
@@ -217,16 +233,24 @@ class SlowStub(StubPhysics):
 def rig(request: pytest.FixtureRequest) -> Iterator[Rig]:
     capacity = getattr(request, "param", 1000)
     endpoint = free_tcp_endpoint()
-    with zenoh.open(build_config(listen=[endpoint])) as server, \
-            zenoh.open(build_config(connect=[endpoint])) as client:
+    with (
+        zenoh.open(build_config(listen=[endpoint])) as server,
+        zenoh.open(build_config(connect=[endpoint])) as client,
+    ):
         twin = Twin(SITE, server, LocalPhysics(SlowStub(SITE)), queue_capacity=capacity)
         twin.start()
         out = Out()
         sub = client.declare_subscriber(KEYS.all_outputs, out)
-        pub = client.declare_publisher(KEYS.passage, encoding=json_encoding(WheelPassage),
-                                       congestion_control=zenoh.CongestionControl.BLOCK)
-        mpub = client.declare_publisher(KEYS.measured, encoding=json_encoding(MeasuredPassage),
-                                        congestion_control=zenoh.CongestionControl.BLOCK)
+        pub = client.declare_publisher(
+            KEYS.passage,
+            encoding=json_encoding(WheelPassage),
+            congestion_control=zenoh.CongestionControl.BLOCK,
+        )
+        mpub = client.declare_publisher(
+            KEYS.measured,
+            encoding=json_encoding(MeasuredPassage),
+            congestion_control=zenoh.CongestionControl.BLOCK,
+        )
         deadline = time.monotonic() + 20
         while not (pub.matching_status.matching and mpub.matching_status.matching):
             assert time.monotonic() < deadline
@@ -279,15 +303,18 @@ def test_service_payload_cap_and_no_echo(rig: Rig) -> None:
 def test_service_nesting_and_ids(rig: Rig) -> None:
     n = limits.MAX_NESTING
     deep = json.dumps({**BASE, "passage_id": "deep", "outline": "X"}).replace(
-        '"X"', "[" * (n + 1) + "]" * (n + 1))
+        '"X"', "[" * (n + 1) + "]" * (n + 1)
+    )
     at_limit = json.dumps({**BASE, "passage_id": "limit", "outline": "X"}).replace(
-        '"X"', "[" * (n - 1) + "]" * (n - 1))
+        '"X"', "[" * (n - 1) + "]" * (n - 1)
+    )
     rig.passages.put(deep)
     rig.passages.put(at_limit)
     rig.passages.put(json.dumps({**BASE, "passage_id": "i" * limits.MAX_ID_LENGTH}))
     rig.passages.put(json.dumps({**BASE, "passage_id": "i" * (limits.MAX_ID_LENGTH + 1)}))
-    rig.passages.put(json.dumps({**BASE, "passage_id": "geo",
-                                 "outline": {"kind": "flat", "length": 1.0}}))
+    rig.passages.put(
+        json.dumps({**BASE, "passage_id": "geo", "outline": {"kind": "flat", "length": 1.0}})
+    )
     rig.out.wait(1, 4)
     errs = [e for e, _ in rig.out.errors]
     assert (errs[0].kind, errs[0].passage_id) == ("invalid_json", "deep")

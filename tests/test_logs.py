@@ -13,8 +13,10 @@ import pytest
 from service.cli import logs
 from service.cli.serve import add_arguments
 
-LINE = re.compile(r"^\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{3}Z (DEBUG|INFO|WARNING|ERROR) "
-                  r"(railtwin(\.\w+)*): (.*)$")
+LINE = re.compile(
+    r"^\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{3}Z (DEBUG|INFO|WARNING|ERROR) "
+    r"(railtwin(\.\w+)*): (.*)$"
+)
 
 
 @pytest.fixture
@@ -39,7 +41,8 @@ def test_text_lines_carry_time_level_and_component(restore_logging: None) -> Non
     assert all(found), lines
     assert [(m.group(1), m.group(2), m.group(4)) for m in found if m] == [
         ("INFO", "railtwin.serve", "ready"),
-        ("WARNING", "railtwin.twin", "overloaded (passage p1): dropped")]
+        ("WARNING", "railtwin.twin", "overloaded (passage p1): dropped"),
+    ]
 
 
 def test_json_lines_for_log_shippers(restore_logging: None) -> None:

@@ -37,10 +37,16 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def site(site_id: str) -> SiteConfig:
-    return SiteConfig.model_validate({
-        "site_id": site_id, "length": 3.0, "output_sample_rate": 2000.0, "contact": "hertz",
-        "rail": {"kind": "flat"}, "material": {"youngs_modulus": 2.14e11, "poisson_ratio": 0.3},
-    })
+    return SiteConfig.model_validate(
+        {
+            "site_id": site_id,
+            "length": 3.0,
+            "output_sample_rate": 2000.0,
+            "contact": "hertz",
+            "rail": {"kind": "flat"},
+            "material": {"youngs_modulus": 2.14e11, "poisson_ratio": 0.3},
+        }
+    )
 
 
 WHEEL = WheelRef.parse("31-80-4751-123-4/2/left")
@@ -48,25 +54,46 @@ WHEEL = WheelRef.parse("31-80-4751-123-4/2/left")
 
 def passage(pid: str, timestamp: float, wheel: WheelRef | None = WHEEL) -> WheelPassage:
     direction = "end1_leading"
-    return WheelPassage.model_validate({
-        "passage_id": pid, "train_id": "t1", "axle_index": 3, "timestamp": timestamp,
-        "speed": 40.0, "load": 60e3, "mass": 500.0, "radius": 0.46,
-        "side": wheel.rail_side(direction) if wheel else "left",
-        "wheel": wheel.model_dump() if wheel else None,
-        "direction": direction if wheel else None,
-    })
+    return WheelPassage.model_validate(
+        {
+            "passage_id": pid,
+            "train_id": "t1",
+            "axle_index": 3,
+            "timestamp": timestamp,
+            "speed": 40.0,
+            "load": 60e3,
+            "mass": 500.0,
+            "radius": 0.46,
+            "side": wheel.rail_side(direction) if wheel else "left",
+            "wheel": wheel.model_dump() if wheel else None,
+            "direction": direction if wheel else None,
+        }
+    )
 
 
 def measured(pid: str) -> MeasuredPassage:
-    return MeasuredPassage(passage_id=pid, sample_rate=1e4, t_start=0.0,
-                           force=[6e4 + 100.0 * (i % 5) for i in range(32)])
+    return MeasuredPassage(
+        passage_id=pid,
+        sample_rate=1e4,
+        t_start=0.0,
+        force=[6e4 + 100.0 * (i % 5) for i in range(32)],
+    )
 
 
 def stand_in_diagnoser(site_id: str, p: WheelPassage, m: MeasuredPassage) -> DiagnosisOutcome:
     """A diagnosis as the real diagnoser makes it: without the wheel and the timestamp."""
-    d = Diagnosis(site_id=site_id, passage_id=p.passage_id, flat=None, verdict="ok", reasons=[],
-                  peak_force_measured=max(m.force), peak_force_fit=max(m.force), fit_rms=1.0,
-                  peak_force_at_line_speed=None, wall_time=0.0)
+    d = Diagnosis(
+        site_id=site_id,
+        passage_id=p.passage_id,
+        flat=None,
+        verdict="ok",
+        reasons=[],
+        peak_force_measured=max(m.force),
+        peak_force_fit=max(m.force),
+        fit_rms=1.0,
+        peak_force_at_line_speed=None,
+        wall_time=0.0,
+    )
     return DiagnosisOutcome(d, [0.0], [0.0], [0.0], [0.0], [])
 
 
@@ -77,8 +104,9 @@ class Site:
         self.endpoint = free_tcp_endpoint()
         self.config = site(site_id)
         self.session = zenoh.open(build_config(listen=[self.endpoint]))
-        physics = LocalPhysics(StubPhysics(self.config),
-                               diagnose=lambda p, m: stand_in_diagnoser(site_id, p, m))
+        physics = LocalPhysics(
+            StubPhysics(self.config), diagnose=lambda p, m: stand_in_diagnoser(site_id, p, m)
+        )
         self.twin = Twin(self.config, self.session, physics, diagnoses=store)
         self.twin.start()
 
@@ -125,33 +153,49 @@ def wait_for(predicate: Any, timeout: float = 20.0) -> None:
 
 
 def test_a_wildcard_query_gets_one_reply_per_twin(
-        two_sites: tuple[Site, Site, zenoh.Session]) -> None:
+    two_sites: tuple[Site, Site, zenoh.Session],
+) -> None:
     _, _, client = two_sites
     got = healths(client)
     assert set(got) == {"railtwin/km12/health", "railtwin/km47/health"}
     assert {k: h.site_id for k, h in got.items()} == {
-        "railtwin/km12/health": "km12", "railtwin/km47/health": "km47"}
-    rails = [RailState.model_validate_json(r.ok.payload.to_bytes())
-             for r in client.get("railtwin/*/rail", timeout=5.0) if r.ok is not None]
+        "railtwin/km12/health": "km12",
+        "railtwin/km47/health": "km47",
+    }
+    rails = [
+        RailState.model_validate_json(r.ok.payload.to_bytes())
+        for r in client.get("railtwin/*/rail", timeout=5.0)
+        if r.ok is not None
+    ]
     assert sorted(r.site_id for r in rails) == ["km12", "km47"]
     # the legacy railtwin/health answers on its own key too (not the query's)
-    legacy = [str(r.ok.key_expr) for r in client.get("railtwin/**", timeout=5.0)
-              if r.ok is not None]
-    assert set(legacy) == {"railtwin/health", "railtwin/km12/health", "railtwin/km12/rail",
-                           "railtwin/km47/health", "railtwin/km47/rail"}
+    legacy = [
+        str(r.ok.key_expr) for r in client.get("railtwin/**", timeout=5.0) if r.ok is not None
+    ]
+    assert set(legacy) == {
+        "railtwin/health",
+        "railtwin/km12/health",
+        "railtwin/km12/rail",
+        "railtwin/km47/health",
+        "railtwin/km47/rail",
+    }
 
 
 # --- the wheel from passage to result and diagnosis -----------------------------------------
 
 
 def test_the_wheel_and_time_go_through_to_result_and_diagnosis(
-        two_sites: tuple[Site, Site, zenoh.Session]) -> None:
+    two_sites: tuple[Site, Site, zenoh.Session],
+) -> None:
     _, _, client = two_sites
     keys = SiteKeys("km12")
     got: dict[str, bytes] = {}
-    subs = [client.declare_subscriber(k, lambda s: got.__setitem__(str(s.key_expr),
-                                                                   s.payload.to_bytes()))
-            for k in (keys.result("p1"), keys.diagnosis("p1"), keys.error)]
+    subs = [
+        client.declare_subscriber(
+            k, lambda s: got.__setitem__(str(s.key_expr), s.payload.to_bytes())
+        )
+        for k in (keys.result("p1"), keys.diagnosis("p1"), keys.error)
+    ]
     time.sleep(0.3)
     put(client, keys.passage, passage("p1", 1.75e9))
     put(client, keys.measured, measured("p1"))
@@ -171,8 +215,9 @@ def test_the_wheel_and_time_go_through_to_result_and_diagnosis(
 # --- catch-up --------------------------------------------------------------------------------
 
 
-def catch_up(client: zenoh.Session, selector: str,
-             accept_any: bool = True) -> tuple[dict[str, Diagnosis], list[str]]:
+def catch_up(
+    client: zenoh.Session, selector: str, accept_any: bool = True
+) -> tuple[dict[str, Diagnosis], list[str]]:
     ok: dict[str, Diagnosis] = {}
     errors: list[str] = []
     kwargs: dict[str, Any] = {"accept_replies": zenoh.ReplyKeyExpr.ANY} if accept_any else {}
@@ -187,7 +232,8 @@ def catch_up(client: zenoh.Session, selector: str,
 
 
 def test_catch_up_returns_each_diagnosis_since_a_time_on_its_own_key(
-        two_sites: tuple[Site, Site, zenoh.Session]) -> None:
+    two_sites: tuple[Site, Site, zenoh.Session],
+) -> None:
     a, b, client = two_sites
     t0 = time.time()
     for s, pid, ts in ((a, "a1", t0 - 86400.0), (a, "a2", t0 + 5.0), (b, "b1", t0 - 7200.0)):
@@ -197,8 +243,11 @@ def test_catch_up_returns_each_diagnosis_since_a_time_on_its_own_key(
     wait_for(lambda: a.twin.diagnoses_done == 2 and b.twin.diagnoses_done == 1)
     got, errors = catch_up(client, f"railtwin/*/diagnoses?since={t0 - 60.0}")
     assert errors == []
-    assert set(got) == {"railtwin/km12/diagnosis/a1", "railtwin/km12/diagnosis/a2",
-                        "railtwin/km47/diagnosis/b1"}   # made since then, whatever their passage
+    assert set(got) == {
+        "railtwin/km12/diagnosis/a1",
+        "railtwin/km12/diagnosis/a2",
+        "railtwin/km47/diagnosis/b1",
+    }  # made since then, whatever their passage
     assert all(d.wheel == WHEEL and d.timestamp is not None for d in got.values())
     # after the time they were made: only a passage whose own timestamp is later
     got, _ = catch_up(client, f"railtwin/*/diagnoses?since={time.time() + 1.0}")
@@ -215,18 +264,28 @@ def test_catch_up_returns_each_diagnosis_since_a_time_on_its_own_key(
 
 
 def test_a_catch_up_answer_too_long_is_cut_and_says_so(
-        two_sites: tuple[Site, Site, zenoh.Session], monkeypatch: pytest.MonkeyPatch) -> None:
+    two_sites: tuple[Site, Site, zenoh.Session], monkeypatch: pytest.MonkeyPatch
+) -> None:
     import service.twin.twin
 
     monkeypatch.setattr(service.twin.twin, "MAX_REPLIES", 2)
     a, _, client = two_sites
     for i in range(3):
-        a.twin.diagnoses.add(f"c{i}", made_at=100.0 + i, timestamp=None,
-                             data=b'{"site_id": "km12", "passage_id": "c%d"}' % i)
-    replies = list(client.get("railtwin/km12/diagnoses?since=0", timeout=5.0,
-                              accept_replies=zenoh.ReplyKeyExpr.ANY))
+        a.twin.diagnoses.add(
+            f"c{i}",
+            made_at=100.0 + i,
+            timestamp=None,
+            data=b'{"site_id": "km12", "passage_id": "c%d"}' % i,
+        )
+    replies = list(
+        client.get(
+            "railtwin/km12/diagnoses?since=0", timeout=5.0, accept_replies=zenoh.ReplyKeyExpr.ANY
+        )
+    )
     assert sorted(str(r.ok.key_expr) for r in replies if r.ok is not None) == [
-        "railtwin/km12/diagnosis/c0", "railtwin/km12/diagnosis/c1"]   # the oldest made
+        "railtwin/km12/diagnosis/c0",
+        "railtwin/km12/diagnosis/c1",
+    ]  # the oldest made
     (err,) = [r.err.payload.to_string() for r in replies if r.err is not None]
     assert "cut at 2" in err and "later since" in err
 
@@ -274,7 +333,11 @@ class Router:
     def __init__(self, endpoint: str) -> None:
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "service.cli.router", "--listen", endpoint],
-            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=ROOT)
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            cwd=ROOT,
+        )
         assert self.proc.stdout is not None
         self.lines = []
         for line in self.proc.stdout:
@@ -292,20 +355,36 @@ class Router:
 def test_a_twin_and_a_client_joined_through_a_router(tmp_path: Path) -> None:
     router_endpoint = free_tcp_endpoint()
     site_file = tmp_path / "site.toml"
-    site_file.write_text('site_id = "km99"\nlength = 3.0\noutput_sample_rate = 2000.0\n'
-                         'contact = "hertz"\nrail = { kind = "flat" }\n[material]\n'
-                         "youngs_modulus = 2.14e11\npoisson_ratio = 0.3\n")
+    site_file.write_text(
+        'site_id = "km99"\nlength = 3.0\noutput_sample_rate = 2000.0\n'
+        'contact = "hertz"\nrail = { kind = "flat" }\n[material]\n'
+        "youngs_modulus = 2.14e11\npoisson_ratio = 0.3\n"
+    )
     router = Router(router_endpoint)
     try:
-        twin = ServiceProcess(site_file, listen=None, recordings=tmp_path / "rec",
-                              extra_args=("--connect", router_endpoint, "--mode", "client",
-                                          "--physics", "stub", "--in-process", "--no-rerun"))
+        twin = ServiceProcess(
+            site_file,
+            listen=None,
+            recordings=tmp_path / "rec",
+            extra_args=(
+                "--connect",
+                router_endpoint,
+                "--mode",
+                "client",
+                "--physics",
+                "stub",
+                "--in-process",
+                "--no-rerun",
+            ),
+        )
         with twin, zenoh.open(build_config(mode="client", connect=[router_endpoint])) as client:
             keys = SiteKeys("km99")
             wait_for(lambda: len(healths(client)) == 1)
             results: list[PassageResult] = []
-            sub = client.declare_subscriber(keys.result("via-router"), lambda s: results.append(
-                PassageResult.model_validate_json(s.payload.to_bytes())))
+            sub = client.declare_subscriber(
+                keys.result("via-router"),
+                lambda s: results.append(PassageResult.model_validate_json(s.payload.to_bytes())),
+            )
             time.sleep(0.3)
             put(client, keys.passage, passage("via-router", 1.7e9))
             wait_for(lambda: len(results) == 1)
@@ -320,15 +399,27 @@ def test_a_twin_and_a_client_joined_through_a_router(tmp_path: Path) -> None:
 
 
 def test_router_refuses_a_bad_endpoint() -> None:
-    out = subprocess.run([sys.executable, "-m", "service.cli.router", "--listen", "nonsense"],
-                         capture_output=True, text=True, cwd=ROOT, timeout=60, check=False)
+    out = subprocess.run(
+        [sys.executable, "-m", "service.cli.router", "--listen", "nonsense"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=60,
+        check=False,
+    )
     assert out.returncode != 0
     assert "railtwin router:" in out.stderr and "nonsense" in out.stderr
 
 
 def test_railtwin_router_is_a_command() -> None:
-    out = subprocess.run([sys.executable, "-m", "service.cli.main", "router", "--help"],
-                         capture_output=True, text=True, cwd=ROOT, timeout=60, check=False)
+    out = subprocess.run(
+        [sys.executable, "-m", "service.cli.main", "router", "--help"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=60,
+        check=False,
+    )
     assert out.returncode == 0 and "--listen" in out.stdout and "--connect" in out.stdout
 
 

@@ -47,8 +47,12 @@ def _alive(pid: int) -> bool:
 
 
 def _orphan_lives(watch: bool, wait: float) -> bool:
-    svc = subprocess.Popen([sys.executable, "-c", SERVICE, "watch" if watch else "none"],
-                           cwd=ROOT, stdout=subprocess.PIPE, text=True)
+    svc = subprocess.Popen(
+        [sys.executable, "-c", SERVICE, "watch" if watch else "none"],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
     assert svc.stdout is not None
     child = int(svc.stdout.readline())
     try:

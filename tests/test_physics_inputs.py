@@ -50,16 +50,30 @@ def test_scenario_and_site_simulate_the_same_passage() -> None:
     scenario = _scenario("compliant_foundation.json").model_copy(update={"speed": 2.8})
     w = scenario.wheel
     length = scenario.speed * scenario.duration
-    site = SiteConfig.model_validate({
-        "site_id": "same", "length": length, "output_sample_rate": scenario.sample_rate,
-        "rail": scenario.rail.model_dump(), "material": scenario.material.model_dump(),
-        "contact": scenario.contact, "foundation": scenario.foundation.model_dump(),
-        "rtol": scenario.rtol,
-    })
+    site = SiteConfig.model_validate(
+        {
+            "site_id": "same",
+            "length": length,
+            "output_sample_rate": scenario.sample_rate,
+            "rail": scenario.rail.model_dump(),
+            "material": scenario.material.model_dump(),
+            "contact": scenario.contact,
+            "foundation": scenario.foundation.model_dump(),
+            "rtol": scenario.rtol,
+        }
+    )
     passage = WheelPassage(
-        passage_id="p", train_id="t", axle_index=0, side="right", timestamp=0.0,
-        speed=scenario.speed, load=w.load, mass=w.mass, radius=w.radius,
-        outline=w.outline, phase=w.phase,
+        passage_id="p",
+        train_id="t",
+        axle_index=0,
+        side="right",
+        timestamp=0.0,
+        speed=scenario.speed,
+        load=w.load,
+        mass=w.mass,
+        radius=w.radius,
+        outline=w.outline,
+        phase=w.phase,
     )
     from_site = SitePhysics(site).simulate(passage)
     from_runner = run_scenario(scenario)

@@ -36,10 +36,14 @@ def test_past_the_drawing_limit_passages_are_logged_not_drawn(tmp_path: Path) ->
     assert entities("s")["force"] not in rrd_columns(plan.rrd_path)
     lines = rrd_texts(plan.rrd_path)[entities("s")["passages"]]
     assert [(i, text.split(":")[0]) for i, text in lines] == [
-        (i, f"#{i} {r.passage_id}") for i, r in enumerate(results)]
+        (i, f"#{i} {r.passage_id}") for i, r in enumerate(results)
+    ]
     assert all("not drawn" in text for _, text in lines)
-    logged = [PassageResult.model_validate_json(m.data).passage_id
-              for m in read_log(sorted(tmp_path.glob("*.mcap"))) if m.topic == TOPIC]
+    logged = [
+        PassageResult.model_validate_json(m.data).passage_id
+        for m in read_log(sorted(tmp_path.glob("*.mcap")))
+        if m.topic == TOPIC
+    ]
     assert sorted(logged) == sorted(r.passage_id for r in results)  # the log has them all
 
 
@@ -47,6 +51,9 @@ def test_past_the_log_limit_messages_wait_and_none_is_lost(tmp_path: Path) -> No
     plan = replace(RecordingPlan(tmp_path, "run", "s"), mcap_backlog_bytes=1, rerun=False)
     rec, results = run(plan, 20)  # each message waits until the child has written the last
     assert rec.failures == 0 and rec.not_drawn == 0 and rec.pending_bytes() == 0
-    logged = [PassageResult.model_validate_json(m.data) for m in
-              read_log(sorted(tmp_path.glob("*.mcap"))) if m.topic == TOPIC]
+    logged = [
+        PassageResult.model_validate_json(m.data)
+        for m in read_log(sorted(tmp_path.glob("*.mcap")))
+        if m.topic == TOPIC
+    ]
     assert [r.passage_id for r in logged] == [r.passage_id for r in results]

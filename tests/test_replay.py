@@ -28,22 +28,43 @@ SITE = "km12"
 
 
 def passage(pid: str, **update: object) -> bytes:
-    data = {"passage_id": pid, "train_id": "t1", "axle_index": 0, "side": "right",
-            "timestamp": 1.7e9, "speed": 44.4, "load": 54000.0, "mass": 600.0,
-            "radius": 0.46, **update}
+    data = {
+        "passage_id": pid,
+        "train_id": "t1",
+        "axle_index": 0,
+        "side": "right",
+        "timestamp": 1.7e9,
+        "speed": 44.4,
+        "load": 54000.0,
+        "mass": 600.0,
+        "radius": 0.46,
+        **update,
+    }
     return json.dumps(data).encode()
 
 
 def measured(pid: str, **update: object) -> bytes:
-    data = {"passage_id": pid, "sample_rate": 10000.0, "t_start": 0.0,
-            "force": [60000.0 + i for i in range(32)], **update}
+    data = {
+        "passage_id": pid,
+        "sample_rate": 10000.0,
+        "t_start": 0.0,
+        "force": [60000.0 + i for i in range(32)],
+        **update,
+    }
     return json.dumps(data).encode()
 
 
 def rejected(key: str, payload: bytes, payload_bytes: int | None = None) -> bytes:
-    return RejectedInput(key=key, payload_base64=base64.b64encode(payload).decode(),
-                         payload_text=payload.decode("utf-8", "replace"),
-                         payload_bytes=payload_bytes).model_dump_json().encode()
+    return (
+        RejectedInput(
+            key=key,
+            payload_base64=base64.b64encode(payload).decode(),
+            payload_text=payload.decode("utf-8", "replace"),
+            payload_bytes=payload_bytes,
+        )
+        .model_dump_json()
+        .encode()
+    )
 
 
 def twin_log(directory: Path, site: str = SITE) -> McapLog:
@@ -53,11 +74,19 @@ def twin_log(directory: Path, site: str = SITE) -> McapLog:
     t = 1_000_000_000
     log.write(f"{p}/passage", WheelPassage, passage("w0"), t)
     log.write(f"{p}/result", ServiceError, b"{}", t + 1)  # an output (schema irrelevant)
-    log.write(f"{p}/passage/rejected", RejectedInput,
-              rejected(f"{p}/passage", b'{"passage_id": "broken", '), t + 10)
+    log.write(
+        f"{p}/passage/rejected",
+        RejectedInput,
+        rejected(f"{p}/passage", b'{"passage_id": "broken", '),
+        t + 10,
+    )
     log.write(f"{p}/measured", MeasuredPassage, measured("w0"), t + 20)
-    log.write(f"{p}/measured/rejected", RejectedInput,
-              rejected(f"{p}/measured", measured("w0", sample_rate=-1.0)), t + 30)
+    log.write(
+        f"{p}/measured/rejected",
+        RejectedInput,
+        rejected(f"{p}/measured", measured("w0", sample_rate=-1.0)),
+        t + 30,
+    )
     log.write(f"{p}/passage", WheelPassage, passage("w1", load=56000.0), t + 40)
     log.write(f"{p}/error", ServiceError, b"{}", t + 41)
     return log
@@ -80,10 +109,12 @@ class Crafted:
             self.schemas[schema] = self.writer.register_schema(schema, "jsonschema", b"{}")
         if (topic, schema) not in self.channels:
             self.channels[topic, schema] = self.writer.register_channel(
-                topic, "json", self.schemas[schema])
+                topic, "json", self.schemas[schema]
+            )
         self.t += 1_000_000
-        self.writer.add_message(self.channels[topic, schema], log_time=self.t, data=data,
-                                publish_time=self.t)
+        self.writer.add_message(
+            self.channels[topic, schema], log_time=self.t, data=data, publish_time=self.t
+        )
 
     def close(self) -> Path:
         self.writer.finish()
@@ -97,14 +128,17 @@ WP, MP, RI = (encoding_schema(m) for m in (WheelPassage, MeasuredPassage, Reject
 def crafted_log(path: Path) -> Path:
     c = Crafted(path)
     c.add(f"railtwin/{SITE}/passage", WP, passage("ok-1"))
-    c.add("railtwin/other/result/x", WP, passage("evil-1"))         # an output key
-    c.add("railtwin/**", WP, passage("evil-2"))                      # a wildcard
-    c.add("somewhere/else/passage", WP, passage("evil-3"))           # another key space
-    c.add(f"railtwin/{SITE}/passage/extra", WP, passage("evil-4"))   # below the input key
+    c.add("railtwin/other/result/x", WP, passage("evil-1"))  # an output key
+    c.add("railtwin/**", WP, passage("evil-2"))  # a wildcard
+    c.add("somewhere/else/passage", WP, passage("evil-3"))  # another key space
+    c.add(f"railtwin/{SITE}/passage/extra", WP, passage("evil-4"))  # below the input key
     c.add(f"railtwin/{SITE}/passage", RI, rejected("x", passage("evil-5")))  # wrong schema
     c.add(f"railtwin/{SITE}/passage", WP, passage("bad-1", mass=-1.0))  # logged "valid"
-    c.add(f"railtwin/{SITE}/passage/rejected", RI,
-          rejected("railtwin/other/result/y", passage("evil-6")[:20], payload_bytes=2 << 20))
+    c.add(
+        f"railtwin/{SITE}/passage/rejected",
+        RI,
+        rejected("railtwin/other/result/y", passage("evil-6")[:20], payload_bytes=2 << 20),
+    )
     c.add(f"railtwin/{SITE}/passage/rejected", RI, b'{"not": "a RejectedInput"}')
     c.add(f"railtwin/{SITE}/measured", MP, measured("ok-1"))
     return c.close()
@@ -132,10 +166,16 @@ def test_valid_inputs_and_measurements_are_sent_rejected_only_when_asked(tmp_pat
 
     everything = plan_replay(msgs, include_rejected=True)
     assert [(i.kind, i.valid) for i in everything.inputs] == [
-        ("passage", True), ("passage", False), ("measured", True), ("measured", False),
-        ("passage", True)]
+        ("passage", True),
+        ("passage", False),
+        ("measured", True),
+        ("measured", False),
+        ("passage", True),
+    ]
     assert everything.inputs[1].payload == b'{"passage_id": "broken", '
-    assert everything.inputs[3].problem is not None and "sample_rate" in everything.inputs[3].problem
+    assert (
+        everything.inputs[3].problem is not None and "sample_rate" in everything.inputs[3].problem
+    )
     assert everything.rejected_skipped == 0
 
 
@@ -144,15 +184,21 @@ def test_a_crafted_log_names_no_key_and_sends_nothing_invalid(tmp_path: Path) ->
     plan = plan_replay(msgs)
     assert sent_ids(plan.inputs) == [("passage", "ok-1"), ("measured", "ok-1")]
     assert plan.skipped_channels == {
-        "railtwin/other/result/x": 1, "railtwin/**": 1, "somewhere/else/passage": 1,
-        f"railtwin/{SITE}/passage/extra": 1, f"railtwin/{SITE}/passage": 1,  # wrong schema
+        "railtwin/other/result/x": 1,
+        "railtwin/**": 1,
+        "somewhere/else/passage": 1,
+        f"railtwin/{SITE}/passage/extra": 1,
+        f"railtwin/{SITE}/passage": 1,  # wrong schema
     }
     assert plan.unknown_channels() == sorted(plan.skipped_channels)
     assert plan.rejected_skipped == 1  # the "valid" one with a negative mass
     assert plan.truncated == 1 and plan.damaged == 1
     with_rejected = plan_replay(msgs, include_rejected=True)
     assert sent_ids(with_rejected.inputs) == [
-        ("passage", "ok-1"), ("passage", "bad-1"), ("measured", "ok-1")]
+        ("passage", "ok-1"),
+        ("passage", "bad-1"),
+        ("measured", "ok-1"),
+    ]
     assert with_rejected.truncated == 1  # a payload logged cut is never sent
 
 
@@ -215,12 +261,12 @@ def cut_log(directory: Path) -> Path:
     return path
 
 
-def test_a_cut_log_is_replayed_up_to_its_last_chunk(tmp_path: Path,
-                                                    capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_cut_log_is_replayed_up_to_its_last_chunk(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     path = cut_log(tmp_path)
     plan = plan_replay(read_logs([path]))
-    assert [json.loads(i.payload)["passage_id"] for i in plan.inputs] == [
-        f"c{i}" for i in range(5)]
+    assert [json.loads(i.payload)["passage_id"] for i in plan.inputs] == [f"c{i}" for i in range(5)]
     assert replay_cli.main([str(path), "--dry-run"]) == 0
     out = capsys.readouterr()
     assert "5 inputs to send: 5 passages, 0 measurements" in out.out
@@ -248,8 +294,10 @@ class Listener:
         self.samples: list[tuple[str, str, bytes]] = []
         self.lock = threading.Lock()
         # the twin's two input subscribers, so that the replay's publishers match
-        self.subs = [self.session.declare_subscriber(k, self.on)
-                     for k in (f"railtwin/{SITE}/passage", f"railtwin/{SITE}/measured")]
+        self.subs = [
+            self.session.declare_subscriber(k, self.on)
+            for k in (f"railtwin/{SITE}/passage", f"railtwin/{SITE}/measured")
+        ]
         self.subs.append(self.session.declare_subscriber("**", self.on_any))
         self.any_keys: list[str] = []
 
@@ -277,20 +325,28 @@ def test_replay_publishes_only_to_the_sites_input_keys(tmp_path: Path) -> None:
     log = crafted_log(tmp_path / "crafted.mcap")
     listener = Listener()
     try:
-        assert replay_cli.main([str(log), "--connect", listener.endpoint, "--rate", "0",
-                                "--include-rejected"]) == 0
+        assert (
+            replay_cli.main(
+                [str(log), "--connect", listener.endpoint, "--rate", "0", "--include-rejected"]
+            )
+            == 0
+        )
         listener.wait(3)
     finally:
         listener.close()
     # in log order on each key (Zenoh may interleave the two keys differently)
-    assert sorted(((k, e, json.loads(p)["passage_id"]) for k, e, p in listener.samples),
-                  key=lambda s: s[0] != f"railtwin/{SITE}/passage") == [
+    assert sorted(
+        ((k, e, json.loads(p)["passage_id"]) for k, e, p in listener.samples),
+        key=lambda s: s[0] != f"railtwin/{SITE}/passage",
+    ) == [
         (f"railtwin/{SITE}/passage", f"application/json;{WP}", "ok-1"),
         (f"railtwin/{SITE}/passage", f"application/json;{WP}", "bad-1"),
         (f"railtwin/{SITE}/measured", f"application/json;{MP}", "ok-1"),
     ]
-    assert sorted(set(listener.any_keys)) == [f"railtwin/{SITE}/measured",
-                                              f"railtwin/{SITE}/passage"]
+    assert sorted(set(listener.any_keys)) == [
+        f"railtwin/{SITE}/measured",
+        f"railtwin/{SITE}/passage",
+    ]
     assert len(listener.any_keys) == 3
 
 
@@ -300,15 +356,29 @@ def test_replay_keeps_the_timing_and_the_bytes(tmp_path: Path) -> None:
     listener = Listener()
     try:
         start = time.monotonic()
-        assert replay_cli.main([*map(str, log.files), "--connect", listener.endpoint,
-                                "--rate", "0.5", "--site", SITE]) == 0
+        assert (
+            replay_cli.main(
+                [
+                    *map(str, log.files),
+                    "--connect",
+                    listener.endpoint,
+                    "--rate",
+                    "0.5",
+                    "--site",
+                    SITE,
+                ]
+            )
+            == 0
+        )
         elapsed = time.monotonic() - start
         listener.wait(3)
     finally:
         listener.close()
     by_key = {k: [p for kk, _, p in listener.samples if kk == k] for k, _, _ in listener.samples}
-    assert by_key == {f"railtwin/{SITE}/passage": [passage("w0"), passage("w1", load=56000.0)],
-                      f"railtwin/{SITE}/measured": [measured("w0")]}
+    assert by_key == {
+        f"railtwin/{SITE}/passage": [passage("w0"), passage("w1", load=56000.0)],
+        f"railtwin/{SITE}/measured": [measured("w0")],
+    }
     assert elapsed >= 40e-9 / 0.5  # 40 ns of log time at half speed: the spacing is kept
 
 

@@ -29,8 +29,7 @@ def test_rotation_deletes_the_oldest_runs_beyond_the_limit(tmp_path: Path) -> No
 def test_a_single_long_run_gives_up_its_own_oldest_parts(tmp_path: Path) -> None:
     """Months in one run: its closed MCAP parts go, oldest first; the one being written stays."""
     (tmp_path / "railtwin-km12-now.rrd").write_bytes(b"r" * 1_000)  # its Rerun part, open
-    log = McapLog(tmp_path, "railtwin-km12-now", max_bytes=2_000, keep_bytes=8_000,
-                  chunk_size=500)
+    log = McapLog(tmp_path, "railtwin-km12-now", max_bytes=2_000, keep_bytes=8_000, chunk_size=500)
     for i in range(2_000):  # many rotations
         log.write("railtwin/km12/passage/rejected", RejectedInput, b'{"i": %d}' % i, i)
     current = log.path

@@ -430,8 +430,7 @@ def test_result_refuses_unknown_transition_kind() -> None:
 def test_json_schema_export() -> None:
     schemas = all_json_schemas()
     assert {"Scenario", "Result", "ErrorReport"} <= set(schemas)
-    messages = set(all_models()) - {"Scenario", "Result", "ErrorReport", "SiteConfig",
-                                    "TrainFile"}
+    messages = set(all_models()) - {"Scenario", "Result", "ErrorReport", "SiteConfig", "TrainFile"}
     for name, schema in schemas.items():
         json.dumps(schema)  # serialisable
         assert schema["title"] == name

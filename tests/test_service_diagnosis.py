@@ -50,8 +50,11 @@ FLAT_LENGTH = 0.05
 
 def site_toml() -> str:
     """examples/site.toml with ``[diagnosis] pairing_timeout = 1.0`` (its table kept if any)."""
-    lines = [ln for ln in EXAMPLE_SITE.read_text().splitlines()
-             if not re.match(r"\s*pairing_timeout\s*=", ln)]
+    lines = [
+        ln
+        for ln in EXAMPLE_SITE.read_text().splitlines()
+        if not re.match(r"\s*pairing_timeout\s*=", ln)
+    ]
     setting = f"pairing_timeout = {PAIRING_TIMEOUT}"
     for i, ln in enumerate(lines):
         if re.match(r"\s*\[diagnosis\]", ln):
@@ -63,8 +66,17 @@ def site_toml() -> str:
 
 
 def wheel(pid: str) -> WheelPassage:
-    return WheelPassage(passage_id=pid, train_id="t1", axle_index=0, side="right",
-                        timestamp=1.7e9, speed=SPEED, load=60e3, mass=500.0, radius=RADIUS)
+    return WheelPassage(
+        passage_id=pid,
+        train_id="t1",
+        axle_index=0,
+        side="right",
+        timestamp=1.7e9,
+        speed=SPEED,
+        load=60e3,
+        mass=500.0,
+        radius=RADIUS,
+    )
 
 
 @dataclass
@@ -118,12 +130,19 @@ def measurement(pid: str) -> MeasuredPassage:
     site = load_site(EXAMPLE_SITE)
     diagnoser = Diagnoser(site, SitePhysics(site))
     rate = site.diagnosis.sample_rate or 10e3
-    m = synthetic_measurement(diagnoser.wheel(wheel(pid)), SPEED,
-                              Flat.ideal(RADIUS, FLAT_LENGTH, phase=1.0),
-                              diagnoser.physics.base_rail, site.length, rate, diagnoser.sensor,
-                              Perturbations(seed=1))
-    return MeasuredPassage(passage_id=pid, sample_rate=m.sample_rate, t_start=m.t_start,
-                           force=m.force.tolist())
+    m = synthetic_measurement(
+        diagnoser.wheel(wheel(pid)),
+        SPEED,
+        Flat.ideal(RADIUS, FLAT_LENGTH, phase=1.0),
+        diagnoser.physics.base_rail,
+        site.length,
+        rate,
+        diagnoser.sensor,
+        Perturbations(seed=1),
+    )
+    return MeasuredPassage(
+        passage_id=pid, sample_rate=m.sample_rate, t_start=m.t_start, force=m.force.tolist()
+    )
 
 
 @pytest.fixture(scope="module")
@@ -143,8 +162,11 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Run:
         sub = session.declare_subscriber(keys.all_outputs, out)
         passages = declare_passage_publisher(session, keys)
         measured = session.declare_publisher(
-            keys.measured, encoding=json_encoding(MeasuredPassage),
-            congestion_control=zenoh.CongestionControl.BLOCK, express=True)
+            keys.measured,
+            encoding=json_encoding(MeasuredPassage),
+            congestion_control=zenoh.CongestionControl.BLOCK,
+            express=True,
+        )
         assert wait_matching(passages, 20.0) and wait_matching(measured, 20.0)
 
         def put_measured(pid: str, **update: object) -> None:
@@ -192,10 +214,12 @@ def test_diagnosis_finds_the_flat_in_either_order(run: Run) -> None:
         assert d.flat.length_low <= d.flat.length <= d.flat.length_high
     assert run.out.encodings["diagnosis"] == f"application/json;{encoding_schema(Diagnosis)}"
     latency = run.out.diagnoses["pm"][0] - run.sent["measured:pm"]
-    print(f"\nmeasurement → diagnosis: {latency * 1e3:.0f} ms (passage first); "
-          f"passage → diagnosis: "
-          f"{(run.out.diagnoses['mp'][0] - run.sent['passage:mp']) * 1e3:.0f} ms "
-          "(measurement first, including the passage's simulation)")
+    print(
+        f"\nmeasurement → diagnosis: {latency * 1e3:.0f} ms (passage first); "
+        f"passage → diagnosis: "
+        f"{(run.out.diagnoses['mp'][0] - run.sent['passage:mp']) * 1e3:.0f} ms "
+        "(measurement first, including the passage's simulation)"
+    )
     assert latency < 10.0
 
 
@@ -213,8 +237,11 @@ def test_bad_measurements_get_errors_naming_the_field(run: Run) -> None:
     assert lonely is not None and f"{PAIRING_TIMEOUT:g} s" in lonely.message
     assert lonely.received_at <= time.time()
     # nothing else went wrong, and the passage after them was served
-    assert Counter(e.kind for e in errors) == {"invalid_measurement": 3, "invalid_json": 1,
-                                               "unpaired": 1}
+    assert Counter(e.kind for e in errors) == {
+        "invalid_measurement": 3,
+        "invalid_json": 1,
+        "unpaired": 1,
+    }
     assert "after" in run.out.results
     assert "lonely" not in run.out.diagnoses
 
@@ -228,13 +255,21 @@ def test_mcap_logs_measurements_and_diagnoses(run: Run) -> None:
     for m in run.logged:
         decode(m)
     logged = [decode(m) for m in run.logged if m.topic == f"{prefix}/diagnosis"]
-    assert {d.passage_id: d for d in logged} == {pid: d for pid, (_, d) in
-                                                 run.out.diagnoses.items()}
-    assert all(isinstance(decode(m), MeasuredPassage) for m in run.logged
-               if m.topic == f"{prefix}/measured")
+    assert {d.passage_id: d for d in logged} == {
+        pid: d for pid, (_, d) in run.out.diagnoses.items()
+    }
+    assert all(
+        isinstance(decode(m), MeasuredPassage)
+        for m in run.logged
+        if m.topic == f"{prefix}/measured"
+    )
     # every verdict and every error again in Foxglove's Log panel, at its verdict's level
-    levels = {"ok": foxglove.INFO, "watch": foxglove.INFO, "inspect": foxglove.WARNING,
-              "remove": foxglove.ERROR}
+    levels = {
+        "ok": foxglove.INFO,
+        "watch": foxglove.INFO,
+        "inspect": foxglove.WARNING,
+        "remove": foxglove.ERROR,
+    }
     notes = [decode(m) for m in run.logged if m.topic == f"{prefix}/log"]
     assert len(notes) == topics[f"{prefix}/diagnosis"] + topics[f"{prefix}/error"]
     for d in logged:

@@ -67,12 +67,16 @@ def passages() -> list[WheelPassage]:
     The flat hits the rail 0.8 m into the site.
     """
     train = TrainFile.model_validate_json(
-        (ROOT / "recordings/samples/train_160kmh.json").read_bytes())
+        (ROOT / "recordings/samples/train_160kmh.json").read_bytes()
+    )
     round_ = train.wheels[0].passage
-    flat = round_.model_copy(update={
-        "passage_id": "flat", "outline": FlatOutline(kind="flat", length=0.05),
-        "phase": (-0.8 / round_.radius) % math.tau,
-    })
+    flat = round_.model_copy(
+        update={
+            "passage_id": "flat",
+            "outline": FlatOutline(kind="flat", length=0.05),
+            "phase": (-0.8 / round_.radius) % math.tau,
+        }
+    )
     return [
         round_.model_copy(update={"passage_id": "w0"}),
         round_.model_copy(update={"passage_id": "w1", "load": 56000.0}),
@@ -86,12 +90,21 @@ def bad_inputs() -> list[tuple[bytes, str, str | None]]:
     good = json.loads(passages()[0].model_dump_json())
     return [
         (b'{"passage_id": "broken", ', "invalid_json", None),
-        (json.dumps({**good, "passage_id": "b1", "speed": "fast"}).encode(),
-         "invalid_passage", "speed"),
-        (json.dumps({**good, "passage_id": "b2", "mass": math.nan}).encode(),
-         "invalid_passage", "mass"),
-        (json.dumps({**good, "passage_id": "b3", "mass": -600.0}).encode(),
-         "invalid_passage", "mass"),
+        (
+            json.dumps({**good, "passage_id": "b1", "speed": "fast"}).encode(),
+            "invalid_passage",
+            "speed",
+        ),
+        (
+            json.dumps({**good, "passage_id": "b2", "mass": math.nan}).encode(),
+            "invalid_passage",
+            "mass",
+        ),
+        (
+            json.dumps({**good, "passage_id": "b3", "mass": -600.0}).encode(),
+            "invalid_passage",
+            "mass",
+        ),
         # the first passage again: a passage id is never applied twice
         (passages()[0].model_dump_json().encode(), "invalid_passage", "passage_id"),
     ]
@@ -110,8 +123,9 @@ def session_to(endpoint: str) -> zenoh.Session:
     return zenoh.open(build_config(connect=[endpoint]))
 
 
-def feed(endpoint: str, sends: list[bytes | WheelPassage]) -> tuple[Collector, list[Health],
-                                                                       RailState | None]:
+def feed(
+    endpoint: str, sends: list[bytes | WheelPassage]
+) -> tuple[Collector, list[Health], RailState | None]:
     """Publish ``sends`` in order (a small gap each), wait for every answer."""
     expected_results = sum(isinstance(s, WheelPassage) for s in sends)
     expected_errors = len(sends) - expected_results
@@ -176,15 +190,29 @@ def replayed_run(first_run: Run, tmp_path_factory: pytest.TempPathFactory) -> Ru
         collector = Collector(KEYS)
         sub = session.declare_subscriber(KEYS.all_outputs, collector)
         replay = subprocess.run(
-            [sys.executable, "-m", "service.cli.replay", *map(str, first_run.service.mcap_files),
-             "--connect", endpoint_of(svc), "--rate", "4", "--include-rejected"],
-            capture_output=True, text=True, timeout=TIMEOUT, cwd=ROOT,
+            [
+                sys.executable,
+                "-m",
+                "service.cli.replay",
+                *map(str, first_run.service.mcap_files),
+                "--connect",
+                endpoint_of(svc),
+                "--rate",
+                "4",
+                "--include-rejected",
+            ],
+            capture_output=True,
+            text=True,
+            timeout=TIMEOUT,
+            cwd=ROOT,
         )
         assert replay.returncode == 0, replay.stderr
         deadline = time.monotonic() + TIMEOUT
         while time.monotonic() < deadline:
-            if (sum(o.result is not None for o in collector.outcomes.values()) >= 4
-                    and len(collector.errors) >= 4):
+            if (
+                sum(o.result is not None for o in collector.outcomes.values()) >= 4
+                and len(collector.errors) >= 4
+            ):
                 break
             time.sleep(0.05)
         sub.undeclare()
@@ -244,12 +272,17 @@ def test_mcap_holds_every_message_and_validates(first_run: Run) -> None:
     p = KEYS.prefix
     assert topics == {
         # the duplicate is logged as a valid passage (it is one), then refused
-        f"{p}/passage": 5, f"{p}/passage/rejected": 4, f"{p}/force": 4,
-        f"{p}/indentation": 4, f"{p}/result": 4, f"{p}/error": 5,
+        f"{p}/passage": 5,
+        f"{p}/passage/rejected": 4,
+        f"{p}/force": 4,
+        f"{p}/indentation": 4,
+        f"{p}/result": 4,
+        f"{p}/error": 5,
         f"{p}/log": 5,  # each error again as a foxglove.Log, for Foxglove's Log panel
         # every sample of every result, one message each (Foxglove plots them against time)
-        f"{p}/samples": sum(len(o.result.x) for o in first_run.collector.outcomes.values()
-                            if o.result is not None),
+        f"{p}/samples": sum(
+            len(o.result.x) for o in first_run.collector.outcomes.values() if o.result is not None
+        ),
     }
     for m in logged:
         decode(m)  # validates against the channel's schema
@@ -260,8 +293,11 @@ def test_mcap_holds_every_message_and_validates(first_run: Run) -> None:
     for pid, o in first_run.collector.outcomes.items():
         assert o.result == results[pid]  # what went over Zenoh is what was logged
     for pid, r in results.items():  # each sample at its own time: the passage's + x/speed
-        got = [(m.log_time_ns, decode(m)) for m in logged
-               if m.topic == f"{p}/samples" and decode(m).passage_id == pid]
+        got = [
+            (m.log_time_ns, decode(m))
+            for m in logged
+            if m.topic == f"{p}/samples" and decode(m).passage_id == pid
+        ]
         np.testing.assert_allclose([s.force for _, s in got], r.force, rtol=1e-6, atol=0)
         assert [t for t, _ in got] == [round((r.timestamp + x / r.speed) * 1e9) for x in r.x]
     logged_inputs = [m for m in logged if m.topic.startswith(f"{p}/passage")]
@@ -278,12 +314,13 @@ def test_rrd_has_every_passage(first_run: Run) -> None:
     for pid, o in first_run.collector.outcomes.items():
         r = o.result
         assert r is not None
-        for role, values in (("force", np.asarray(r.force)),  # SI: N and m
-                             ("indentation", np.asarray(r.indentation)),
-                             ("y_c", np.asarray(r.y_c)),
-                             ("y_ck", np.asarray(r.y_ck))):
-            np.testing.assert_array_equal(of_passage(cols[e[role]], index[pid])["values"],
-                                          values)
+        for role, values in (
+            ("force", np.asarray(r.force)),  # SI: N and m
+            ("indentation", np.asarray(r.indentation)),
+            ("y_c", np.asarray(r.y_c)),
+            ("y_ck", np.asarray(r.y_ck)),
+        ):
+            np.testing.assert_array_equal(of_passage(cols[e[role]], index[pid])["values"], values)
     assert e["profile"] in cols
     assert rrd_entities(rrd) <= set(e.values())  # a fixed set, whatever the passages
 
@@ -303,7 +340,8 @@ def test_replay_reproduces_the_outputs_exactly(first_run: Run, replayed_run: Run
     second = [comparable(m) for m in replayed_run.logged]
     # inputs: the same bytes, in the same order
     assert [m.data for m in first_run.logged if "/passage" in m.topic] == [
-        m.data for m in replayed_run.logged if "/passage" in m.topic]
+        m.data for m in replayed_run.logged if "/passage" in m.topic
+    ]
     # outputs: the same numbers
     assert Counter(t for t, _ in first) == Counter(t for t, _ in second)
     key = lambda item: (item[0], json.dumps(item[1], sort_keys=True))  # noqa: E731

@@ -19,8 +19,15 @@ from schemas.messages import (
 from service.recording.mcap_log import LoggedMessage, McapLog, decode, read_log
 
 PASSAGE = WheelPassage(
-    passage_id="t1-a00-r", train_id="t1", axle_index=0, side="right", timestamp=1.7e9,
-    speed=44.4, load=52000.0, mass=600.0, radius=0.46,
+    passage_id="t1-a00-r",
+    train_id="t1",
+    axle_index=0,
+    side="right",
+    timestamp=1.7e9,
+    speed=44.4,
+    load=52000.0,
+    mass=600.0,
+    radius=0.46,
 )
 
 
@@ -28,8 +35,11 @@ def test_channels_carry_their_json_schema(tmp_path: Path) -> None:
     log = McapLog(tmp_path, "run")
     data = PASSAGE.model_dump_json().encode()
     log.write("railtwin/s/passage", WheelPassage, data, 10)
-    err = ServiceError(site_id="s", kind="invalid_json", message="m", field=None,
-                       received_at=1.0).model_dump_json().encode()
+    err = (
+        ServiceError(site_id="s", kind="invalid_json", message="m", field=None, received_at=1.0)
+        .model_dump_json()
+        .encode()
+    )
     log.write("railtwin/s/error", ServiceError, err, 20)
     log.close()
     with log.files[0].open("rb") as f:
@@ -40,7 +50,8 @@ def test_channels_carry_their_json_schema(tmp_path: Path) -> None:
     for s in schemas.values():
         assert s.encoding == "jsonschema"
     assert json.loads(schemas[encoding_schema(WheelPassage)].data) == (
-        WheelPassage.model_json_schema())
+        WheelPassage.model_json_schema()
+    )
     assert {c.message_encoding for c in summary.channels.values()} == {"json"}
     messages = list(read_log(log.files))
     assert [m.topic for m in messages] == ["railtwin/s/passage", "railtwin/s/error"]
@@ -67,8 +78,11 @@ def test_flushed_messages_survive_a_crash(tmp_path: Path) -> None:
 
 def test_rotation_by_size(tmp_path: Path) -> None:
     log = McapLog(tmp_path, "rot", max_bytes=2000, chunk_size=500)
-    payload = RejectedInput(key="railtwin/s/passage", payload_base64="QUJD" * 200,
-                            payload_text="x").model_dump_json().encode()
+    payload = (
+        RejectedInput(key="railtwin/s/passage", payload_base64="QUJD" * 200, payload_text="x")
+        .model_dump_json()
+        .encode()
+    )
     for i in range(40):
         log.write("railtwin/s/passage/rejected", RejectedInput, payload, i)
         log.flush()
@@ -80,8 +94,14 @@ def test_rotation_by_size(tmp_path: Path) -> None:
 def test_errors_and_verdicts_also_go_to_a_foxglove_log_channel(tmp_path: Path) -> None:
     from service.recording import foxglove
 
-    err = ServiceError(site_id="s", kind="simulation_failed", message="over budget",
-                       field=None, passage_id="p7", received_at=1.0)
+    err = ServiceError(
+        site_id="s",
+        kind="simulation_failed",
+        message="over budget",
+        field=None,
+        passage_id="p7",
+        received_at=1.0,
+    )
     entry = foxglove.log_entry("ServiceError", err.model_dump_json().encode(), 1_500_000_001)
     assert entry is not None
     assert (entry.timestamp.sec, entry.timestamp.nsec) == (1, 500_000_001)
@@ -89,8 +109,13 @@ def test_errors_and_verdicts_also_go_to_a_foxglove_log_channel(tmp_path: Path) -
     assert "over budget" in entry.message
     assert foxglove.log_entry("WheelPassage", PASSAGE.model_dump_json().encode(), 0) is None
     log = McapLog(tmp_path, "run")
-    log.write(foxglove.log_topic("railtwin/s/error"), foxglove.Log,
-              entry.model_dump_json().encode(), 20, schema_name=foxglove.SCHEMA_NAME)
+    log.write(
+        foxglove.log_topic("railtwin/s/error"),
+        foxglove.Log,
+        entry.model_dump_json().encode(),
+        20,
+        schema_name=foxglove.SCHEMA_NAME,
+    )
     log.close()
     (m,) = list(read_log(log.files))
     assert m.topic == "railtwin/s/log" and m.schema_name == "foxglove.Log"
@@ -110,8 +135,9 @@ def test_every_sample_of_a_result_is_plottable_against_time(tmp_path: Path) -> N
     data = r.model_dump_json().encode()
     for behind, name in ((64 * 2**20, "fed"), (0, "behind")):
         d = tmp_path / name
-        rec = ProcessRecorder(RecordingPlan(d, "run", "s", rerun=False,
-                                            samples_backlog_bytes=behind))
+        rec = ProcessRecorder(
+            RecordingPlan(d, "run", "s", rerun=False, samples_backlog_bytes=behind)
+        )
         rec.message("railtwin/s/result", PassageResult, data, 1_780_000_009_000_000_000)
         rec.close()
         with sorted(d.glob("*.mcap"))[0].open("rb") as f:
@@ -127,11 +153,13 @@ def test_every_sample_of_a_result_is_plottable_against_time(tmp_path: Path) -> N
         assert [m.log_time for _, m in rows] == want
         assert [m.publish_time for _, m in rows] == want
         assert {s.name for s, _ in rows} == {foxglove.SAMPLE_SCHEMA_NAME}
-        got = [decode(LoggedMessage("railtwin/s/samples", s.name, m.log_time, m.data))
-               for s, m in rows]
+        got = [
+            decode(LoggedMessage("railtwin/s/samples", s.name, m.log_time, m.data)) for s, m in rows
+        ]
         assert all(isinstance(g, foxglove.PassageSample) for g in got)
         for name in ("force", "indentation", "x"):  # 7 significant digits: a plot's precision
-            np.testing.assert_allclose([getattr(g, name) for g in got], getattr(r, name),
-                                       rtol=1e-6, atol=0)
+            np.testing.assert_allclose(
+                [getattr(g, name) for g in got], getattr(r, name), rtol=1e-6, atol=0
+            )
         assert {g.passage_id for g in got} == {"p1"}
         assert [g.timestamp.sec * 10**9 + g.timestamp.nsec for g in got] == want

@@ -23,8 +23,15 @@ from service.wire.site import SiteFileError, load_site
 
 ROOT = Path(__file__).resolve().parents[1]
 GOOD = {
-    "passage_id": "t1-a00-r", "train_id": "t1", "axle_index": 0, "side": "right",
-    "timestamp": 1.7e9, "speed": 44.4, "load": 52000.0, "mass": 600.0, "radius": 0.46,
+    "passage_id": "t1-a00-r",
+    "train_id": "t1",
+    "axle_index": 0,
+    "side": "right",
+    "timestamp": 1.7e9,
+    "speed": 44.4,
+    "load": 52000.0,
+    "mass": 600.0,
+    "radius": 0.46,
 }
 
 
@@ -50,12 +57,21 @@ def test_good_passage_has_defaults_and_version() -> None:
         (json.dumps({**GOOD, "mass": math.nan}).encode(), "invalid_passage", "mass"),
         (json.dumps({**GOOD, "load": math.inf}).encode(), "invalid_passage", "load"),
         (json.dumps({**GOOD, "axle_index": "3"}).encode(), "invalid_passage", "axle_index"),
-        (json.dumps({**GOOD, "schema_version": "2.0"}).encode(), "invalid_passage",
-         "schema_version"),
-        (json.dumps({k: v for k, v in GOOD.items() if k != "radius"}).encode(),
-         "invalid_passage", "radius"),
-        (json.dumps({**GOOD, "outline": {"kind": "flat", "length": -0.05}}).encode(),
-         "invalid_passage", "outline.length"),
+        (
+            json.dumps({**GOOD, "schema_version": "2.0"}).encode(),
+            "invalid_passage",
+            "schema_version",
+        ),
+        (
+            json.dumps({k: v for k, v in GOOD.items() if k != "radius"}).encode(),
+            "invalid_passage",
+            "radius",
+        ),
+        (
+            json.dumps({**GOOD, "outline": {"kind": "flat", "length": -0.05}}).encode(),
+            "invalid_passage",
+            "outline.length",
+        ),
         (json.dumps({**GOOD, "phase": "north"}).encode(), "invalid_passage", "phase"),
         (json.dumps({**GOOD, "passage_id": "a/b"}).encode(), "invalid_passage", "passage_id"),
         (b"[1, 2]", "invalid_passage", None),
@@ -87,21 +103,44 @@ def test_every_message_has_a_json_schema_and_a_version() -> None:
 
 def test_result_series_must_have_one_length() -> None:
     with pytest.raises(ValidationError, match="force"):
-        PassageResult.model_validate({
-            "site_id": "s", "passage_id": "p", "train_id": "t", "axle_index": 0,
-            "side": "left", "timestamp": 0.0, "speed": 1.0, "sample_rate": 1.0, "t_start": 0.0,
-            "site_length": 1.0, "x": [0.0, 1.0], "force": [0.0], "indentation": [0.0, 0.0],
-            "y_c": [0.0, 0.0], "y_ck": [0.0, 0.0], "transitions": [],
-            "summary": {"peak_force": 0.0, "min_force": 0.0, "contact_losses": 0,
-                        "first_loss_time": None, "time_out_of_contact": 0.0,
-                        "max_indentation": 0.0, "max_dent": 0.0},
-            "rail_revision": 0, "wall_time": 0.0, "steps": 0,
-        })
+        PassageResult.model_validate(
+            {
+                "site_id": "s",
+                "passage_id": "p",
+                "train_id": "t",
+                "axle_index": 0,
+                "side": "left",
+                "timestamp": 0.0,
+                "speed": 1.0,
+                "sample_rate": 1.0,
+                "t_start": 0.0,
+                "site_length": 1.0,
+                "x": [0.0, 1.0],
+                "force": [0.0],
+                "indentation": [0.0, 0.0],
+                "y_c": [0.0, 0.0],
+                "y_ck": [0.0, 0.0],
+                "transitions": [],
+                "summary": {
+                    "peak_force": 0.0,
+                    "min_force": 0.0,
+                    "contact_losses": 0,
+                    "first_loss_time": None,
+                    "time_out_of_contact": 0.0,
+                    "max_indentation": 0.0,
+                    "max_dent": 0.0,
+                },
+                "rail_revision": 0,
+                "wall_time": 0.0,
+                "steps": 0,
+            }
+        )
 
 
 def test_sample_train_is_valid_and_has_a_measured_flat() -> None:
     train = TrainFile.model_validate_json(
-        (ROOT / "recordings/samples/train_160kmh.json").read_bytes())
+        (ROOT / "recordings/samples/train_160kmh.json").read_bytes()
+    )
     assert len(train.wheels) >= 24
     kinds = [w.passage.outline.kind for w in train.wheels]
     assert kinds.count("sampled") == 1
@@ -121,7 +160,7 @@ def test_site_with_rail_file(tmp_path: Path) -> None:
     (tmp_path / "site.toml").write_text(
         'site_id = "s"\nlength = 2.0\noutput_sample_rate = 1e4\ncontact = "hertz"\n'
         '[rail]\nkind = "file"\npath = "rail.csv"\n'
-        '[material]\nyoungs_modulus = 2.14e11\npoisson_ratio = 0.3\n'
+        "[material]\nyoungs_modulus = 2.14e11\npoisson_ratio = 0.3\n"
     )
     site = load_site(tmp_path / "site.toml")
     assert site.rail.kind == "sampled"

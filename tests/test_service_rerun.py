@@ -36,8 +36,11 @@ def rrd_columns(path: Path) -> dict[str, dict[str, np.ndarray]]:
         cols = out.setdefault(str(chunk.entity_path), {})
         before = len(cols.get("values", ()))
         for name in INDEXES:
-            new = (np.asarray(batch[name].cast(pa.int64())) if name in batch.schema.names
-                   else np.full(batch.num_rows, -1, np.int64))
+            new = (
+                np.asarray(batch[name].cast(pa.int64()))
+                if name in batch.schema.names
+                else np.full(batch.num_rows, -1, np.int64)
+            )
             cols[name] = np.concatenate([cols.get(name, np.full(before, -1, np.int64)), new])
         values = np.asarray(batch["Scalars:scalars"].flatten())
         cols["values"] = np.concatenate([cols.get("values", np.empty(0)), values])
@@ -49,21 +52,28 @@ def rrd_texts(path: Path) -> dict[str, list[tuple[int, str]]]:
     out: dict[str, list[tuple[int, str]]] = {}
     for chunk in rc.RrdReader(str(path)).stream():
         batch: pa.RecordBatch = chunk.to_record_batch()
-        column = next((n for n in ("TextLog:text", "TextDocument:text")
-                       if n in batch.schema.names), None)
+        column = next(
+            (n for n in ("TextLog:text", "TextDocument:text") if n in batch.schema.names), None
+        )
         if column is None:
             continue
         texts = batch[column].flatten().to_pylist()
-        passages = (batch["passage"].cast(pa.int64()).to_pylist()
-                    if "passage" in batch.schema.names else [-1] * len(texts))
+        passages = (
+            batch["passage"].cast(pa.int64()).to_pylist()
+            if "passage" in batch.schema.names
+            else [-1] * len(texts)
+        )
         out.setdefault(str(chunk.entity_path), []).extend(zip(passages, texts, strict=True))
     return out
 
 
 def rrd_entities(path: Path) -> set[str]:
     """Every entity path that has data (static or not), properties aside."""
-    return {str(c.entity_path) for c in rc.RrdReader(str(path)).stream()
-            if not str(c.entity_path).startswith("/__")}
+    return {
+        str(c.entity_path)
+        for c in rc.RrdReader(str(path)).stream()
+        if not str(c.entity_path).startswith("/__")
+    }
 
 
 def passage_indexes(path: Path, site_id: str) -> dict[str, int]:
@@ -82,22 +92,50 @@ def result(pid: str, n: int = 50, load: float = 50e3, timestamp: float = 0.0) ->
     x = np.linspace(0.0, 2.0, n)
     force = load + 1e3 * np.sin(x)
     return PassageResult(
-        site_id="s", passage_id=pid, train_id="t", axle_index=0, side="right", timestamp=timestamp,
-        speed=40.0, sample_rate=1000.0, t_start=0.0, site_length=2.0, x=x.tolist(),
-        force=force.tolist(), indentation=(force * 1e-9).tolist(), y_c=[0.0] * n,
+        site_id="s",
+        passage_id=pid,
+        train_id="t",
+        axle_index=0,
+        side="right",
+        timestamp=timestamp,
+        speed=40.0,
+        sample_rate=1000.0,
+        t_start=0.0,
+        site_length=2.0,
+        x=x.tolist(),
+        force=force.tolist(),
+        indentation=(force * 1e-9).tolist(),
+        y_c=[0.0] * n,
         y_ck=(x * 1e-6).tolist(),
-        transitions=[Transition(t=0.01, kind="loss", x=0.4), Transition(t=0.02, kind="contact",
-                                                                        x=0.8)],
-        summary=Summary(peak_force=float(force.max()), min_force=0.0, contact_losses=1,
-                        first_loss_time=0.01, time_out_of_contact=0.01,
-                        max_indentation=6e-5, max_dent=0.0),
-        rail_revision=0, wall_time=0.001, steps=10,
+        transitions=[
+            Transition(t=0.01, kind="loss", x=0.4),
+            Transition(t=0.02, kind="contact", x=0.8),
+        ],
+        summary=Summary(
+            peak_force=float(force.max()),
+            min_force=0.0,
+            contact_losses=1,
+            first_loss_time=0.01,
+            time_out_of_contact=0.01,
+            max_indentation=6e-5,
+            max_dent=0.0,
+        ),
+        rail_revision=0,
+        wall_time=0.001,
+        steps=10,
     )
 
 
 def dented(passages_done: int) -> RailState:
-    return RailState(site_id="s", revision=1, passages_done=passages_done, x=[0.0, 1.0, 2.0],
-                     y=[0.0, -1e-6, 0.0], dent=[0.0, 1e-6, 0.0], max_dent=1e-6)
+    return RailState(
+        site_id="s",
+        revision=1,
+        passages_done=passages_done,
+        x=[0.0, 1.0, 2.0],
+        y=[0.0, -1e-6, 0.0],
+        dent=[0.0, 1e-6, 0.0],
+        max_dent=1e-6,
+    )
 
 
 T0 = 1_780_000_000.0
@@ -109,8 +147,7 @@ def record(path: Path, n: int, part_passages: int = 5000, t0: float = T0) -> lis
     second."""
     rec = RerunRecording(path, "s", part_passages=part_passages)
     rec.log_rail(np.linspace(0.0, 2.0, 21), np.zeros(21))
-    results = [result(f"p{i}", load=50e3 + 100.0 * i, timestamp=t0 + 10.0 * i)
-               for i in range(n)]
+    results = [result(f"p{i}", load=50e3 + 100.0 * i, timestamp=t0 + 10.0 * i) for i in range(n)]
     for i, r in enumerate(results):
         rec.log_passage(r)
         if i == 1:
@@ -134,8 +171,9 @@ def test_recording_reads_back(tmp_path: Path) -> None:
     np.testing.assert_array_equal(f0["x_mm"], np.rint(np.asarray(a.x) * 1000).astype(np.int64))
     f1 = of_passage(cols[e["force"]], 1)
     np.testing.assert_array_equal(f1["values"], np.asarray(b.force))
-    np.testing.assert_array_equal(f1["x_mm"] - SLOT_MM,
-                                  np.rint(np.asarray(b.x) * 1000).astype(np.int64))
+    np.testing.assert_array_equal(
+        f1["x_mm"] - SLOT_MM, np.rint(np.asarray(b.x) * 1000).astype(np.int64)
+    )
     np.testing.assert_array_equal(of_passage(cols[e["transitions"]], 0)["x_mm"], [400, 800])
     dent = cols[e["dent"]]
     assert set(dent["passage"]) == {1}
@@ -184,8 +222,9 @@ def test_a_long_run_goes_on_in_parts_of_one_recording(tmp_path: Path) -> None:
         found |= index
         cols = rrd_columns(part)
         for pid, i in index.items():
-            np.testing.assert_array_equal(of_passage(cols[e["force"]], i)["values"],
-                                          np.asarray(results[i].force))
+            np.testing.assert_array_equal(
+                of_passage(cols[e["force"]], i)["values"], np.asarray(results[i].force)
+            )
             assert pid == results[i].passage_id
     assert len(found) == 25
 
@@ -213,8 +252,9 @@ def test_samples_lie_on_the_wall_clock_and_passages_continue_across_runs(tmp_pat
                 np.testing.assert_allclose(rows["time"] / 1e9, t, rtol=0, atol=1e-6)
                 assert set(rows["passage_time"]) == {round(r.timestamp * 1e9)}
             tr = of_passage(cols[e["transitions"]], index)
-            np.testing.assert_allclose(tr["time"] / 1e9, r.timestamp + np.array([0.4, 0.8]) / 40.0,
-                                       rtol=0, atol=1e-6)
+            np.testing.assert_allclose(
+                tr["time"] / 1e9, r.timestamp + np.array([0.4, 0.8]) / 40.0, rtol=0, atol=1e-6
+            )
             stamps.append(int(of_passage(cols[e["force"]], index)["passage_time"][0]))
     assert stamps == sorted(stamps) and len(set(stamps)) == 5  # one time line over both runs
     assert list(of_passage(rrd_columns(second)[e["force"]], 0)["passage"][:1]) == [0]
@@ -231,14 +271,24 @@ def test_si_units_with_the_unit_in_every_name(tmp_path: Path) -> None:
             if column in batch.schema.names:
                 units[str(chunk.entity_path)] = batch[column].to_pylist()[0][0]
     e = entities("s")
-    expected = {"force": "[N]", "transitions": "[N]", "indentation": "[m]", "y_c": "[m]",
-                "y_ck": "[m]", "profile": "[m]", "dent": "[m]", "measured": "[N]", "fit": "[N]",
-                "impacts": "[N]"}
+    expected = {
+        "force": "[N]",
+        "transitions": "[N]",
+        "indentation": "[m]",
+        "y_c": "[m]",
+        "y_ck": "[m]",
+        "profile": "[m]",
+        "dent": "[m]",
+        "measured": "[N]",
+        "fit": "[N]",
+        "impacts": "[N]",
+    }
     for role, unit in expected.items():
         assert units[e[role]].endswith(unit), (role, units[e[role]])
     cols = rrd_columns(path)
-    np.testing.assert_allclose(of_passage(cols[e["indentation"]], 1)["values"],
-                               results[1].indentation)
+    np.testing.assert_allclose(
+        of_passage(cols[e["indentation"]], 1)["values"], results[1].indentation
+    )
     texts = [t for lines in rrd_texts(path).values() for _, t in lines]
 
     def views(x: object) -> list[rrb.TimeSeriesView]:
@@ -264,9 +314,19 @@ def test_a_diagnosis_lies_at_its_passage_time_recorded_in_this_run_or_not(tmp_pa
     x = np.linspace(0.0, 2.0, 11)
     t = x / 40.0
     for pid, stamp in (("p0", None), ("elsewhere", T0 + 50.0)):
-        diag = Diagnosis(site_id="s", passage_id=pid, flat=None, verdict="ok", reasons=[],
-                         peak_force_measured=6e4, peak_force_fit=6e4, fit_rms=1.0,
-                         peak_force_at_line_speed=None, wall_time=0.0, timestamp=stamp)
+        diag = Diagnosis(
+            site_id="s",
+            passage_id=pid,
+            flat=None,
+            verdict="ok",
+            reasons=[],
+            peak_force_measured=6e4,
+            peak_force_fit=6e4,
+            fit_rms=1.0,
+            peak_force_at_line_speed=None,
+            wall_time=0.0,
+            timestamp=stamp,
+        )
         rec.log_diagnosis(diag, t, np.full(11, 6e4), np.full(11, 6e4), x, np.empty(0))
     rec.close()
     measured = rrd_columns(path)[entities("s")["measured"]]

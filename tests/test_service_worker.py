@@ -29,14 +29,28 @@ from service.wire.keyspace import SiteKeys
 from service.wire.limits import passage_samples
 from service.wire.zenoh_session import build_config, free_tcp_endpoint
 
-PLASTIC = SiteConfig.model_validate({
-    "site_id": "plastic", "length": 3.0, "output_sample_rate": 5000.0,
-    "contact": "hertz_plastic", "rtol": 1e-8,
-    "rail": {"kind": "cosine", "amplitude": 2e-6, "wavelength": 0.06},
-    "material": {"youngs_modulus": 2.14e11, "poisson_ratio": 0.3, "yield_stress": 6e8},
-})
-WHEEL = WheelPassage(passage_id="w0", train_id="t1", axle_index=0, side="right",
-                     timestamp=1.7e9, speed=44.4, load=60e3, mass=500.0, radius=0.46)
+PLASTIC = SiteConfig.model_validate(
+    {
+        "site_id": "plastic",
+        "length": 3.0,
+        "output_sample_rate": 5000.0,
+        "contact": "hertz_plastic",
+        "rtol": 1e-8,
+        "rail": {"kind": "cosine", "amplitude": 2e-6, "wavelength": 0.06},
+        "material": {"youngs_modulus": 2.14e11, "poisson_ratio": 0.3, "yield_stress": 6e8},
+    }
+)
+WHEEL = WheelPassage(
+    passage_id="w0",
+    train_id="t1",
+    axle_index=0,
+    side="right",
+    timestamp=1.7e9,
+    speed=44.4,
+    load=60e3,
+    mass=500.0,
+    radius=0.46,
+)
 BUDGET = 2.0
 START_TIMEOUT = 300.0
 """s a service may take to start: its workers compile when numba's cache is cold."""
@@ -55,9 +69,13 @@ poisson_ratio = 0.3
 
 
 def test_plastic_rail_survives_a_worker_killed_for_its_budget() -> None:
-    flat = WHEEL.model_copy(update={"passage_id": "flat",
-                                    "outline": FlatOutline(kind="flat", length=0.05),
-                                    "phase": (-0.8 / WHEEL.radius) % math.tau})
+    flat = WHEEL.model_copy(
+        update={
+            "passage_id": "flat",
+            "outline": FlatOutline(kind="flat", length=0.05),
+            "phase": (-0.8 / WHEEL.radius) % math.tau,
+        }
+    )
     physics = ProcessPhysics(PLASTIC, budget=60.0, warm_up=False)
     physics.start()
     try:
@@ -82,8 +100,10 @@ def test_plastic_rail_survives_a_worker_killed_for_its_budget() -> None:
 def write_slow_site(directory: Path) -> Path:
     """A 60 m site on a measured (sampled, 1 mm) rail: no fast constraint sweep applies."""
     n = 60_201
-    rows = [f"{-0.1 + i * 1e-3:.4f},{2e-6 * math.cos(2 * math.pi * i * 1e-3 / 0.06) + 1e-7 * ((i * 7919) % 13 - 6) / 6:.4e}"
-            for i in range(n)]
+    rows = [
+        f"{-0.1 + i * 1e-3:.4f},{2e-6 * math.cos(2 * math.pi * i * 1e-3 / 0.06) + 1e-7 * ((i * 7919) % 13 - 6) / 6:.4e}"
+        for i in range(n)
+    ]
     (directory / "rail.csv").write_text("x,y\n" + "\n".join(rows) + "\n")
     site = directory / "slow.toml"
     site.write_text(SLOW_SITE)
@@ -95,8 +115,11 @@ def slow_wheel(pid: str) -> dict[str, Any]:
     n = 4096
     theta = [2 * math.pi * i / n for i in range(n)]
     radius = [0.46 + 1e-5 * math.sin(5 * t) for t in theta]
-    return {**json.loads(WHEEL.model_dump_json()), "passage_id": pid,
-            "outline": {"kind": "sampled", "theta": theta, "radius": radius}}
+    return {
+        **json.loads(WHEEL.model_dump_json()),
+        "passage_id": pid,
+        "outline": {"kind": "sampled", "theta": theta, "radius": radius},
+    }
 
 
 class Prober:
@@ -150,9 +173,13 @@ def test_never_deaf_budget_and_sigterm(tmp_path: Path) -> None:
             time.sleep(0.01)
         return bool(cond())
 
-    svc = ServiceProcess(site, listen=endpoint, recordings=tmp_path / "rec",
-                         extra_args=("--passage-budget", str(BUDGET), "--no-rerun"),
-                         start_timeout=START_TIMEOUT)
+    svc = ServiceProcess(
+        site,
+        listen=endpoint,
+        recordings=tmp_path / "rec",
+        extra_args=("--passage-budget", str(BUDGET), "--no-rerun"),
+        start_timeout=START_TIMEOUT,
+    )
     with svc, zenoh.open(build_config(connect=[endpoint])) as session:
         sub = session.declare_subscriber(keys.all_outputs, on_output)
         pub = declare_passage_publisher(session, keys)
@@ -169,9 +196,11 @@ def test_never_deaf_budget_and_sigterm(tmp_path: Path) -> None:
         assert f"budget of {BUDGET:g} s" in err.message
         assert took >= BUDGET
         during = prober.latencies
-        print(f"\nhealth during a {took:.1f} s runaway passage: {len(during)} answers, "
-              f"median {statistics.median(during) * 1e3:.1f} ms, "
-              f"max {max(during) * 1e3:.1f} ms, {prober.missed} missed")
+        print(
+            f"\nhealth during a {took:.1f} s runaway passage: {len(during)} answers, "
+            f"median {statistics.median(during) * 1e3:.1f} ms, "
+            f"max {max(during) * 1e3:.1f} ms, {prober.missed} missed"
+        )
         assert prober.missed == 0
         assert len(during) >= 20
         assert statistics.median(during) < 0.1 and max(during) < 0.5
@@ -199,9 +228,22 @@ def test_port_taken_is_one_line(tmp_path: Path) -> None:
         taken.listen()
         port = taken.getsockname()[1]
         proc = subprocess.run(
-            [sys.executable, "-m", "service.cli.serve", "--site", str(site), "--listen",
-             f"tcp/127.0.0.1:{port}", "--physics", "stub", "--no-mcap", "--no-rerun"],
-            capture_output=True, text=True, timeout=120,
+            [
+                sys.executable,
+                "-m",
+                "service.cli.serve",
+                "--site",
+                str(site),
+                "--listen",
+                f"tcp/127.0.0.1:{port}",
+                "--physics",
+                "stub",
+                "--no-mcap",
+                "--no-rerun",
+            ],
+            capture_output=True,
+            text=True,
+            timeout=120,
             cwd=Path(__file__).resolve().parents[1],
         )
     assert proc.returncode == 1, proc.stderr
@@ -215,8 +257,11 @@ def test_two_workers_publish_in_order(tmp_path: Path, pace: str) -> None:
     """Two workers on an elastic site: results in the passages' order (fast pacing: slow and
     quick wheels alternate, so a later passage is often simulated first)."""
     site = tmp_path / "fast.toml"
-    site.write_text(SLOW_SITE.replace('length = 60.0', 'length = 3.0').replace(
-        'kind = "file"\npath = "rail.csv"', 'kind = "flat"'))
+    site.write_text(
+        SLOW_SITE.replace("length = 60.0", "length = 3.0").replace(
+            'kind = "file"\npath = "rail.csv"', 'kind = "flat"'
+        )
+    )
     keys = SiteKeys("slow")
     endpoint = free_tcp_endpoint()
     order: list[str] = []
@@ -237,8 +282,13 @@ def test_two_workers_publish_in_order(tmp_path: Path, pace: str) -> None:
     extra: tuple[str, ...] = ("--workers", "2", "--pace", pace, "--no-mcap", "--no-rerun")
     if pace == "realtime":  # the result is due when the wheel leaves: same speed, in order
         extra += ("--physics", "stub", "--chunk-period", "0.02")
-    svc = ServiceProcess(site, listen=endpoint, recordings=tmp_path / "rec", extra_args=extra,
-                         start_timeout=START_TIMEOUT)
+    svc = ServiceProcess(
+        site,
+        listen=endpoint,
+        recordings=tmp_path / "rec",
+        extra_args=extra,
+        start_timeout=START_TIMEOUT,
+    )
     with svc, zenoh.open(build_config(connect=[endpoint])) as session:
         assert "worker processes" in svc.output, svc.output
         sub = session.declare_subscriber(keys.all_outputs, on_output)
@@ -246,8 +296,7 @@ def test_two_workers_publish_in_order(tmp_path: Path, pace: str) -> None:
         assert wait_matching(pub, 20.0)
         for i, pid in enumerate(ids):
             speed = 10.0 if (i % 2 == 0 or pace == "realtime") else 80.0
-            pub.put(WHEEL.model_copy(update={"passage_id": pid, "speed": speed})
-                    .model_dump_json())
+            pub.put(WHEEL.model_copy(update={"passage_id": pid, "speed": speed}).model_dump_json())
         deadline = time.monotonic() + 60.0
         while time.monotonic() < deadline and len(order) < len(ids):
             time.sleep(0.02)

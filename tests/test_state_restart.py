@@ -20,17 +20,32 @@ from service.physics.rail_store import (
 )
 from service.physics.worker import ProcessPhysics
 
-SITE = SiteConfig.model_validate({
-    "site_id": "plastic", "length": 2.0, "output_sample_rate": 5000.0,
-    "rail": {"kind": "flat"}, "contact": "hertz_plastic",
-    "material": {"youngs_modulus": 2.14e11, "poisson_ratio": 0.3, "yield_stress": 6e8},
-})
+SITE = SiteConfig.model_validate(
+    {
+        "site_id": "plastic",
+        "length": 2.0,
+        "output_sample_rate": 5000.0,
+        "rail": {"kind": "flat"},
+        "contact": "hertz_plastic",
+        "material": {"youngs_modulus": 2.14e11, "poisson_ratio": 0.3, "yield_stress": 6e8},
+    }
+)
 
 
 def _flat_wheel(pid: str) -> WheelPassage:
-    return WheelPassage(passage_id=pid, train_id="t", axle_index=0, side="right", timestamp=0.0,
-                        speed=20.0, load=50e3, mass=500.0, radius=0.46,
-                        outline={"kind": "flat", "length": 0.05}, phase=4.1)  # flat at x = 1 m  # type: ignore[arg-type]
+    return WheelPassage(
+        passage_id=pid,
+        train_id="t",
+        axle_index=0,
+        side="right",
+        timestamp=0.0,
+        speed=20.0,
+        load=50e3,
+        mass=500.0,
+        radius=0.46,
+        outline={"kind": "flat", "length": 0.05},
+        phase=4.1,
+    )  # flat at x = 1 m  # type: ignore[arg-type]
 
 
 def test_restart_goes_on_from_the_dented_rail_and_remembers_applied_ids(tmp_path: Path) -> None:
@@ -82,14 +97,19 @@ def _edit(site: SiteConfig, **parts: Any) -> SiteConfig:
     return SiteConfig.model_validate({**site.model_dump(), **parts})
 
 
-@pytest.mark.parametrize("edit", [
-    {"diagnosis": {"watch_force": 240e3, "inspect_force": 300e3, "remove_force": 400e3}},
-    {"output_sample_rate": 8000.0},
-    {"description": "km 12, after the 2026 grinding campaign"},
-    {"rtol": 1e-7},
-], ids=["limits", "sample-rate", "description", "rtol"])
-def test_what_does_not_change_the_dents_keeps_the_rail(tmp_path: Path,
-                                                       edit: dict[str, Any]) -> None:
+@pytest.mark.parametrize(
+    "edit",
+    [
+        {"diagnosis": {"watch_force": 240e3, "inspect_force": 300e3, "remove_force": 400e3}},
+        {"output_sample_rate": 8000.0},
+        {"description": "km 12, after the 2026 grinding campaign"},
+        {"rtol": 1e-7},
+    ],
+    ids=["limits", "sample-rate", "description", "rtol"],
+)
+def test_what_does_not_change_the_dents_keeps_the_rail(
+    tmp_path: Path, edit: dict[str, Any]
+) -> None:
     _dented_state(tmp_path)
     assert _reopened(tmp_path, _edit(SITE, **edit)) == (1, 1, 1)
 
@@ -103,17 +123,26 @@ def test_a_railtwin_upgrade_keeps_the_rail(tmp_path: Path) -> None:
     assert path.exists()
 
 
-@pytest.mark.parametrize(("edit", "named"), [
-    ({"rail": {"kind": "cosine", "amplitude": 1e-5, "wavelength": 0.5}}, "the rail"),
-    ({"material": {"youngs_modulus": 2.0e11, "poisson_ratio": 0.3, "yield_stress": 6e8}},
-     "the material"),
-    ({"contact": "hertz"}, "the contact law"),
-    ({"foundation": {"kind": "compliant", "stiffness": 1e9, "damping": 1e5, "mass": 100.0}},
-     "the foundation"),
-    ({"length": 3.0}, "the site length"),
-], ids=["rail", "material", "contact", "foundation", "length"])
+@pytest.mark.parametrize(
+    ("edit", "named"),
+    [
+        ({"rail": {"kind": "cosine", "amplitude": 1e-5, "wavelength": 0.5}}, "the rail"),
+        (
+            {"material": {"youngs_modulus": 2.0e11, "poisson_ratio": 0.3, "yield_stress": 6e8}},
+            "the material",
+        ),
+        ({"contact": "hertz"}, "the contact law"),
+        (
+            {"foundation": {"kind": "compliant", "stiffness": 1e9, "damping": 1e5, "mass": 100.0}},
+            "the foundation",
+        ),
+        ({"length": 3.0}, "the site length"),
+    ],
+    ids=["rail", "material", "contact", "foundation", "length"],
+)
 def test_what_changes_the_dents_refuses_the_state_naming_it(
-        tmp_path: Path, edit: dict[str, Any], named: str) -> None:
+    tmp_path: Path, edit: dict[str, Any], named: str
+) -> None:
     _dented_state(tmp_path)
     edited = _edit(SITE, **edit)
     with pytest.raises(StateMismatchError, match=f"{named} changed since") as err:
@@ -133,8 +162,10 @@ def test_a_schema_1_state_is_migrated_keeping_rail_and_ids(tmp_path: Path) -> No
                            x BLOB NOT NULL, y BLOB NOT NULL);
         CREATE TABLE applied (passage_id TEXT PRIMARY KEY, revision INTEGER NOT NULL);
     """)
-    db.executemany("INSERT INTO meta VALUES (?, ?)",
-                   [("site_id", "plastic"), ("model_version", "railtwin 0.1, site file 0123")])
+    db.executemany(
+        "INSERT INTO meta VALUES (?, ?)",
+        [("site_id", "plastic"), ("model_version", "railtwin 0.1, site file 0123")],
+    )
     x, y = np.array([0.0, 1.0, 2.0]), np.array([0.0, -2e-5, 0.0])
     db.execute("INSERT INTO rail VALUES (1, 3, ?, ?)", (x.tobytes(), y.tobytes()))
     db.executemany("INSERT INTO applied VALUES (?, ?)", [("p0", 2), ("p1", 3)])
@@ -155,8 +186,9 @@ def test_a_schema_1_state_is_migrated_keeping_rail_and_ids(tmp_path: Path) -> No
     assert again.migrated_from is None
     again.close()
     with pytest.raises(StateMismatchError, match="the rail changed since"):
-        open_state(tmp_path, _edit(SITE, rail={"kind": "cosine", "amplitude": 1e-5,
-                                               "wavelength": 0.5}))
+        open_state(
+            tmp_path, _edit(SITE, rail={"kind": "cosine", "amplitude": 1e-5, "wavelength": 0.5})
+        )
 
 
 def test_a_state_of_a_newer_railtwin_is_refused(tmp_path: Path) -> None:

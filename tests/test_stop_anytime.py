@@ -49,7 +49,7 @@ def group_members(pgid: int) -> list[int]:
             stat = (entry / "stat").read_text()
         except OSError:
             continue
-        fields = stat[stat.rindex(")") + 2:].split()
+        fields = stat[stat.rindex(")") + 2 :].split()
         state, pgrp = fields[0], int(fields[2])
         if pgrp == pgid and state != "Z":
             found.append(int(entry.name))
@@ -69,18 +69,28 @@ def flood(endpoint: str, site_id: str, ready: threading.Event, done: threading.E
             for i in range(FLOOD):
                 if done.is_set():
                     break
-                pub.put(WheelPassage(
-                    passage_id=f"f{i}", train_id="flood", axle_index=i % 32, side="right",
-                    timestamp=1.7e9 + i, speed=44.4, load=80e3, mass=600.0, radius=0.46,
-                ).model_dump_json().encode())
+                pub.put(
+                    WheelPassage(
+                        passage_id=f"f{i}",
+                        train_id="flood",
+                        axle_index=i % 32,
+                        side="right",
+                        timestamp=1.7e9 + i,
+                        speed=44.4,
+                        load=80e3,
+                        mass=600.0,
+                        radius=0.46,
+                    )
+                    .model_dump_json()
+                    .encode()
+                )
             pub.undeclare()
     except zenoh.ZError:
         return  # the service went away under the client: that is the point
 
 
 @pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")
-def test_sigterm_at_random_moments_ends_every_process_with_readable_logs(
-        tmp_path: Path) -> None:
+def test_sigterm_at_random_moments_ends_every_process_with_readable_logs(tmp_path: Path) -> None:
     rng = random.Random(SEED)
     moments = []
     ready_after: list[float] = []  # s from the spawn to "ready", as measured so far
@@ -93,17 +103,37 @@ def test_sigterm_at_random_moments_ends_every_process_with_readable_logs(
         recordings = tmp_path / f"run{run}"
         spawned = time.monotonic()
         proc = subprocess.Popen(
-            [sys.executable, "-m", "service.cli", "serve", "--site", "examples/site.toml",
-             "--listen", endpoint, "--recordings", str(recordings), "--physics", "stub",
-             "--state", str(recordings / "state"), "--stop-timeout", str(STOP_TIMEOUT)],
-            cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-            env={**os.environ, "PYTHONUNBUFFERED": "1"}, start_new_session=True,
+            [
+                sys.executable,
+                "-m",
+                "service.cli",
+                "serve",
+                "--site",
+                "examples/site.toml",
+                "--listen",
+                endpoint,
+                "--recordings",
+                str(recordings),
+                "--physics",
+                "stub",
+                "--state",
+                str(recordings / "state"),
+                "--stop-timeout",
+                str(STOP_TIMEOUT),
+            ],
+            cwd=ROOT,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            env={**os.environ, "PYTHONUNBUFFERED": "1"},
+            start_new_session=True,
         )
         lines: list[str] = []
         ready, done = threading.Event(), threading.Event()
 
-        def pump(p: subprocess.Popen[str] = proc, out: list[str] = lines,
-                 seen: threading.Event = ready) -> None:
+        def pump(
+            p: subprocess.Popen[str] = proc, out: list[str] = lines, seen: threading.Event = ready
+        ) -> None:
             assert p.stdout is not None
             for line in p.stdout:
                 out.append(line.rstrip("\n"))
@@ -112,8 +142,7 @@ def test_sigterm_at_random_moments_ends_every_process_with_readable_logs(
 
         reader = threading.Thread(target=pump, daemon=True)
         reader.start()
-        client = threading.Thread(target=flood, args=(endpoint, "demo", ready, done),
-                                  daemon=True)
+        client = threading.Thread(target=flood, args=(endpoint, "demo", ready, done), daemon=True)
         client.start()
         if phase == "start-up":
             typical = sorted(ready_after)[len(ready_after) // 2]
@@ -134,9 +163,11 @@ def test_sigterm_at_random_moments_ends_every_process_with_readable_logs(
         except subprocess.TimeoutExpired:
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait()
-            pytest.fail(f"run {run} (SIGTERM at {delay:.2f} s, group {whole_group}, ready "
-                        f"{was_ready}): the service did not stop within {STOP_BOUND:g} s\n"
-                        + "\n".join(lines))
+            pytest.fail(
+                f"run {run} (SIGTERM at {delay:.2f} s, group {whole_group}, ready "
+                f"{was_ready}): the service did not stop within {STOP_BOUND:g} s\n"
+                + "\n".join(lines)
+            )
         while group_members(proc.pid) and time.monotonic() - signalled < STOP_BOUND:
             time.sleep(0.05)
         left = group_members(proc.pid)
@@ -146,9 +177,11 @@ def test_sigterm_at_random_moments_ends_every_process_with_readable_logs(
         reader.join(5.0)
         stopped = time.monotonic() - signalled
         moments.append((delay, whole_group, was_ready, code, stopped))
-        context = (f"run {run}: SIGTERM at {delay:.2f} s to the "
-                   f"{'group' if whole_group else 'main process'} (ready: {was_ready})\n"
-                   + "\n".join(lines))
+        context = (
+            f"run {run}: SIGTERM at {delay:.2f} s to the "
+            f"{'group' if whole_group else 'main process'} (ready: {was_ready})\n"
+            + "\n".join(lines)
+        )
         assert not left, f"processes {left} still running {STOP_BOUND:g} s after\n{context}"
         # the handler is installed once the interpreter has loaded railtwin; before, the
         # default action ends the process, which then has started nothing
@@ -158,5 +191,10 @@ def test_sigterm_at_random_moments_ends_every_process_with_readable_logs(
         assert sorted(named) == on_disk, context
         for path in on_disk:
             list(read_log([path]))  # closed: index and footer are there (raises if cut)
-    print("\n".join(f"SIGTERM at {d:5.2f} s {'group' if g else 'main '} ready={r!s:5} "
-                    f"exit {c} all gone in {s:.2f} s" for d, g, r, c, s in moments))
+    print(
+        "\n".join(
+            f"SIGTERM at {d:5.2f} s {'group' if g else 'main '} ready={r!s:5} "
+            f"exit {c} all gone in {s:.2f} s"
+            for d, g, r, c, s in moments
+        )
+    )

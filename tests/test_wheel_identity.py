@@ -23,13 +23,27 @@ from schemas.messages import (
 from schemas.site import SiteConfig
 
 PASSAGE: dict[str, Any] = {
-    "passage_id": "t1-a00-r", "train_id": "t1", "axle_index": 0, "side": "right",
-    "timestamp": 1.7e9, "speed": 44.4, "load": 52000.0, "mass": 600.0, "radius": 0.46,
+    "passage_id": "t1-a00-r",
+    "train_id": "t1",
+    "axle_index": 0,
+    "side": "right",
+    "timestamp": 1.7e9,
+    "speed": 44.4,
+    "load": 52000.0,
+    "mass": 600.0,
+    "radius": 0.46,
 }
 DIAGNOSIS: dict[str, Any] = {
-    "site_id": "km12", "passage_id": "p1", "flat": None, "verdict": "ok", "reasons": [],
-    "peak_force_measured": 9e4, "peak_force_fit": 9e4, "fit_rms": 100.0,
-    "peak_force_at_line_speed": None, "wall_time": 0.5,
+    "site_id": "km12",
+    "passage_id": "p1",
+    "flat": None,
+    "verdict": "ok",
+    "reasons": [],
+    "peak_force_measured": 9e4,
+    "peak_force_fit": 9e4,
+    "fit_rms": 100.0,
+    "peak_force_at_line_speed": None,
+    "wall_time": 0.5,
 }
 
 
@@ -88,15 +102,20 @@ def test_a_wheel_keeps_its_id_when_the_vehicle_runs_the_other_way() -> None:
     for direction in ("end2_leading", "end1_leading"):
         rail = wheel.rail_side(direction)
         p = WheelPassage.model_validate(
-            {**PASSAGE, "side": rail, "direction": direction, "wheel": wheel.model_dump()})
+            {**PASSAGE, "side": rail, "direction": direction, "wheel": wheel.model_dump()}
+        )
         runs.append((p.side, p.wheel))
-    assert runs[0][0] != runs[1][0]            # left rail one way, right rail the other
-    assert runs[0][1] == runs[1][1] == wheel   # one wheel
+    assert runs[0][0] != runs[1][0]  # left rail one way, right rail the other
+    assert runs[0][1] == runs[1][1] == wheel  # one wheel
 
 
 def test_side_must_agree_with_wheel_and_direction() -> None:
-    bad = {**PASSAGE, "side": "right", "direction": "end2_leading",
-           "wheel": {"vehicle_id": "V1", "wheelset": 1, "side": "left"}}
+    bad = {
+        **PASSAGE,
+        "side": "right",
+        "direction": "end2_leading",
+        "wheel": {"vehicle_id": "V1", "wheelset": 1, "side": "left"},
+    }
     msg = errors(WheelPassage, bad)
     assert "side" in msg and "V1/1/left" in msg["side"]
     # without a direction nothing ties the two sides together
@@ -128,10 +147,15 @@ def test_a_newer_minor_version_with_new_fields_is_read() -> None:
     newer = {**PASSAGE, "schema_version": "1.7", "bogie": {"kind": "y25"}, "axle_load_t": 22.5}
     p = WheelPassage.model_validate_json(json.dumps(newer))
     assert p.passage_id == PASSAGE["passage_id"] and p.schema_version == "1.7"
-    assert "bogie" not in json.loads(p.model_dump_json())   # producers write known fields only
-    d = Diagnosis.model_validate({**DIAGNOSIS, "schema_version": "1.2", "confidence": 0.9,
-                                  "wheel": {"vehicle_id": "V", "wheelset": 1,
-                                            "side": "left", "position": "L1"}})
+    assert "bogie" not in json.loads(p.model_dump_json())  # producers write known fields only
+    d = Diagnosis.model_validate(
+        {
+            **DIAGNOSIS,
+            "schema_version": "1.2",
+            "confidence": 0.9,
+            "wheel": {"vehicle_id": "V", "wheelset": 1, "side": "left", "position": "L1"},
+        }
+    )
     assert d.wheel == WheelRef.parse("V/1/left")
 
 
@@ -155,8 +179,14 @@ def test_a_malformed_version_is_refused(version: str) -> None:
 
 
 def test_files_a_person_writes_still_reject_unknown_keys() -> None:
-    site = {"site_id": "km12", "length": 6.0, "output_sample_rate": 1e4, "rail": {"kind": "flat"},
-            "contact": "hertz", "material": {"youngs_modulus": 2.14e11, "poisson_ratio": 0.3}}
+    site = {
+        "site_id": "km12",
+        "length": 6.0,
+        "output_sample_rate": 1e4,
+        "rail": {"kind": "flat"},
+        "contact": "hertz",
+        "material": {"youngs_modulus": 2.14e11, "poisson_ratio": 0.3},
+    }
     SiteConfig.model_validate(site)
     assert "lenght" in errors(SiteConfig, {**site, "lenght": 6.0})
     assert "whels" in errors(TrainFile, {"train_id": "t", "wheels": [], "whels": []})

@@ -35,8 +35,9 @@ from service.clients.feeder import Collector, declare_passage_publisher, query_h
 from service.wire.keyspace import SiteKeys
 from service.wire.zenoh_session import build_config
 
-pytestmark = pytest.mark.skipif(shutil.which("openssl") is None,
-                                reason="openssl is not installed: no certificates can be made")
+pytestmark = pytest.mark.skipif(
+    shutil.which("openssl") is None, reason="openssl is not installed: no certificates can be made"
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 DEPLOY = ROOT / "deploy" / "zenoh"
@@ -82,7 +83,8 @@ def intruder_config(certs: Path, connect: list[str]) -> zenoh.Config:
 
 def a_passage(passage_id: str) -> WheelPassage:
     train = TrainFile.model_validate_json(
-        (ROOT / "recordings/samples/train_160kmh.json").read_bytes())
+        (ROOT / "recordings/samples/train_160kmh.json").read_bytes()
+    )
     return train.wheels[0].passage.model_copy(update={"passage_id": passage_id})
 
 
@@ -114,31 +116,41 @@ def deployment(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Deployment]
     made = load_make_certs().make_certs(certs, site=SITE_ID)
     assert set(made) >= {"ca", "twin", f"site-{SITE_ID}", "consumer", "intruder"}
     site_file = tmp / "site.toml"
-    site_file.write_text((ROOT / "examples/site.toml").read_text()
-                         .replace('site_id = "demo"', f'site_id = "{SITE_ID}"'))
+    site_file.write_text(
+        (ROOT / "examples/site.toml")
+        .read_text()
+        .replace('site_id = "demo"', f'site_id = "{SITE_ID}"')
+    )
     twin_endpoint = f"tls/localhost:{free_port()}"
     consumer_endpoint = f"tls/localhost:{free_port()}"
     svc = ServiceProcess(
-        site_file, listen=twin_endpoint, recordings=tmp / "recordings",
-        extra_args=("--zenoh-config", str(shipped_config("twin.json5", certs, tmp)),
-                    "--no-rerun"),
+        site_file,
+        listen=twin_endpoint,
+        recordings=tmp / "recordings",
+        extra_args=("--zenoh-config", str(shipped_config("twin.json5", certs, tmp)), "--no-rerun"),
         start_timeout=180.0,  # ~5 s warm-up, unless numba recompiles on a loaded machine
     )
     with svc:
         consumer_cfg = build_config(
-            connect=[twin_endpoint], listen=[consumer_endpoint],
-            config_file=shipped_config("consumer.json5", certs, tmp))
-        site_cfg = build_config(
             connect=[twin_endpoint],
-            config_file=shipped_config("site-publisher.json5", certs, tmp))
+            listen=[consumer_endpoint],
+            config_file=shipped_config("consumer.json5", certs, tmp),
+        )
+        site_cfg = build_config(
+            connect=[twin_endpoint], config_file=shipped_config("site-publisher.json5", certs, tmp)
+        )
         with zenoh.open(consumer_cfg) as consumer, zenoh.open(site_cfg) as site:
             collector = Collector(KEYS)
             keys_seen: list[str] = []  # every sample, even one the Collector cannot decode
-            subs = [consumer.declare_subscriber(KEYS.all_outputs, collector),
-                    consumer.declare_subscriber(
-                        KEYS.all_outputs, lambda s: keys_seen.append(str(s.key_expr)))]
-            yield Deployment(certs, twin_endpoint, consumer_endpoint, consumer, collector,
-                             keys_seen, site, svc)
+            subs = [
+                consumer.declare_subscriber(KEYS.all_outputs, collector),
+                consumer.declare_subscriber(
+                    KEYS.all_outputs, lambda s: keys_seen.append(str(s.key_expr))
+                ),
+            ]
+            yield Deployment(
+                certs, twin_endpoint, consumer_endpoint, consumer, collector, keys_seen, site, svc
+            )
             for sub in subs:
                 sub.undeclare()
     assert svc.returncode == 0, svc.output

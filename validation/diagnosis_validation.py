@@ -58,15 +58,22 @@ def _frac(xs: list[bool | None]) -> str:
 
 
 def table(rows: list[dict[str, Any]]) -> str:
-    out = ["| kind | speed km/h | damping ratio | cases | length error median / worst (mm) "
-           "| within max(5 mm, 10 %) | kind right | interval covers | forecast ±20 % "
-           "| forecast interval covers | wall s median / worst |",
-           "|---|---|---|---|---|---|---|---|---|---|---|"]
+    out = [
+        "| kind | speed km/h | damping ratio | cases | length error median / worst (mm) "
+        "| within max(5 mm, 10 %) | kind right | interval covers | forecast ±20 % "
+        "| forecast interval covers | wall s median / worst |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for kind in ("flat", "rounded_flat"):
         for s0, s1 in SPEED_BANDS:
             for z0, z1 in DAMPING_BANDS:
-                sel = [r for r in rows if r["kind"] == kind and s0 <= r["speed_kmh"] < s1
-                       and z0 <= r["true_damping_ratio"] < z1]
+                sel = [
+                    r
+                    for r in rows
+                    if r["kind"] == kind
+                    and s0 <= r["speed_kmh"] < s1
+                    and z0 <= r["true_damping_ratio"] < z1
+                ]
                 if not sel:
                     continue
                 err = np.array([abs(r["found_length"] - r["true_length"]) for r in sel]) * 1e3
@@ -79,18 +86,28 @@ def table(rows: list[dict[str, Any]]) -> str:
                     f"| {_frac([covered(r) for r in sel])} "
                     f"| {_frac([line_ok(r) for r in sel])} "
                     f"| {_frac([line_covered(r) for r in sel])} "
-                    f"| {np.median(wall):.2f} / {wall.max():.2f} |")
+                    f"| {np.median(wall):.2f} / {wall.max():.2f} |"
+                )
     flats = [r for r in rows if r["kind"] != "round"]
     rounds = [r for r in rows if r["kind"] == "round"]
     fa = [r["case"] for r in rounds if r["found_kind"] is not None]
     due = [r for r in flats if r["true_length"] >= 0.06 or r["true_peak"] >= 400e3]
     missed = [r["case"] for r in due if r["verdict"] != "remove"]
-    widths = [float(r["length_high"]) - float(r["length_low"]) for r in flats
-              if r["length_low"] is not None]
-    line_err = [abs(r["line_point"] / r["line_truth"] - 1) for r in flats
-                if r["line_truth"] and r["line_point"]]
-    too_low = [r["case"] for r in flats if r["line_truth"] and r["line_high"] is not None
-               and r["line_high"] < 0.8 * r["line_truth"]]
+    widths = [
+        float(r["length_high"]) - float(r["length_low"])
+        for r in flats
+        if r["length_low"] is not None
+    ]
+    line_err = [
+        abs(r["line_point"] / r["line_truth"] - 1)
+        for r in flats
+        if r["line_truth"] and r["line_point"]
+    ]
+    too_low = [
+        r["case"]
+        for r in flats
+        if r["line_truth"] and r["line_high"] is not None and r["line_high"] < 0.8 * r["line_truth"]
+    ]
     unexpl = [r for r in rows if r["explained"] is False]
     wrong_expl = [r["case"] for r in flats if r["explained"] and not within(r)]
     cpu = np.array([r["cpu_time"] for r in rows])
@@ -119,8 +136,9 @@ def table(rows: list[dict[str, Any]]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m validation.diagnosis_validation",
-                                description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(
+        prog="python -m validation.diagnosis_validation", description=__doc__.split("\n")[0]
+    )
     p.add_argument("--own", type=int, default=40, help="cases from the own generator")
     p.add_argument("--seed", type=int, default=20261201, help="the own generator's seed")
     p.add_argument("--out", type=Path, default=Path("validation/diagnosis_results.json"))
@@ -137,8 +155,10 @@ def main(argv: list[str] | None = None) -> int:
     print("## (a) the independent wide set (validation/measured-wide, 40 passages)\n")
     print(table(wide))
     if own:
-        print(f"\n## (b) the project's own generator, {a.own} fresh cases over the same space "
-              f"(seed {a.seed})\n")
+        print(
+            f"\n## (b) the project's own generator, {a.own} fresh cases over the same space "
+            f"(seed {a.seed})\n"
+        )
         print(table(own))
     print(f"\n({len(wide)} + {len(own)} passages in {time.perf_counter() - start:.0f} s)")
     return 0

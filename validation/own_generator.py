@@ -36,28 +36,44 @@ def _site(rng: np.random.Generator) -> tuple[SiteConfig, float]:
     k = float(rng.uniform(1e8, 4e8))
     zeta = float(math.exp(rng.uniform(math.log(0.02), math.log(0.4))))
     c = damping_for_ratio(Foundation.compliant(M, k, 0.0), zeta)
-    site = SiteConfig.model_validate({
-        "site_id": "own", "length": 6.0, "output_sample_rate": 1e4, "contact": "hertz",
-        "rail": {"kind": "flat"},
-        "material": {"youngs_modulus": 2.14e11, "poisson_ratio": 0.3},
-        "foundation": {"kind": "compliant", "mass": M, "stiffness": k, "damping": c},
-        "diagnosis": {"line_speed": LINE_SPEED,
-                      "sensor_lowpass_hz": float(rng.choice([2000.0, 3000.0, 4000.0])),
-                      "sensor_lowpass_order": int(rng.choice([2, 4])), "sample_rate": 1e4},
-    })
+    site = SiteConfig.model_validate(
+        {
+            "site_id": "own",
+            "length": 6.0,
+            "output_sample_rate": 1e4,
+            "contact": "hertz",
+            "rail": {"kind": "flat"},
+            "material": {"youngs_modulus": 2.14e11, "poisson_ratio": 0.3},
+            "foundation": {"kind": "compliant", "mass": M, "stiffness": k, "damping": c},
+            "diagnosis": {
+                "line_speed": LINE_SPEED,
+                "sensor_lowpass_hz": float(rng.choice([2000.0, 3000.0, 4000.0])),
+                "sensor_lowpass_order": int(rng.choice([2, 4])),
+                "sample_rate": 1e4,
+            },
+        }
+    )
     return site, zeta
 
 
-def draw_case(i: int, rng: np.random.Generator) -> tuple[str, Flat | None, SiteConfig,
-                                                          WheelPassage, float]:
+def draw_case(
+    i: int, rng: np.random.Generator
+) -> tuple[str, Flat | None, SiteConfig, WheelPassage, float]:
     u = rng.uniform()
     kind = "round" if u < 0.2 else ("flat" if u < 0.6 else "rounded_flat")
     site, zeta = _site(rng)
     R = float(rng.uniform(0.42, 0.5))
-    p = WheelPassage(passage_id=f"o{i:03d}", train_id="own", axle_index=i % 100, side="right",
-                     timestamp=0.0, speed=float(rng.uniform(20, 160) / 3.6),
-                     load=float(rng.uniform(45e3, 110e3)), mass=float(rng.uniform(350, 900)),
-                     radius=R)
+    p = WheelPassage(
+        passage_id=f"o{i:03d}",
+        train_id="own",
+        axle_index=i % 100,
+        side="right",
+        timestamp=0.0,
+        speed=float(rng.uniform(20, 160) / 3.6),
+        load=float(rng.uniform(45e3, 110e3)),
+        mass=float(rng.uniform(350, 900)),
+        radius=R,
+    )
     phase = float(rng.uniform(0, 2 * math.pi))
     tread: Flat | None = None
     if kind == "flat":
@@ -74,42 +90,66 @@ def run_case(i: int, rng: np.random.Generator) -> dict[str, Any]:
     noise = float(rng.uniform(0.01, 0.03))
     rough = float(rng.uniform(2e-6, 10e-6))
     d = Diagnoser(site)
-    m = measure(site, p, tread, seed=seed, noise=noise, roughness=rough, damping_ratio=None,
-                diagnoser=d)
-    mp = MeasuredPassage(passage_id=p.passage_id, sample_rate=m.sample_rate, t_start=m.t_start,
-                         force=m.force.tolist())
+    m = measure(
+        site, p, tread, seed=seed, noise=noise, roughness=rough, damping_ratio=None, diagnoser=d
+    )
+    mp = MeasuredPassage(
+        passage_id=p.passage_id,
+        sample_rate=m.sample_rate,
+        t_start=m.t_start,
+        force=m.force.tolist(),
+    )
     cpu = time.process_time()
     diag, curves = d.diagnose(p, mp)
     cpu = time.process_time() - cpu
     line_truth = None
     if tread is not None:
         wheel = d.wheel(p)
-        lm = synthetic_measurement(wheel, LINE_SPEED, tread, d.physics.base_rail, site.length,
-                                   m.sample_rate, d.sensor,
-                                   Perturbations(noise_fraction=0.0, roughness_rms=rough,
-                                                 seed=seed))
+        lm = synthetic_measurement(
+            wheel,
+            LINE_SPEED,
+            tread,
+            d.physics.base_rail,
+            site.length,
+            m.sample_rate,
+            d.sensor,
+            Perturbations(noise_fraction=0.0, roughness_rms=rough, seed=seed),
+        )
         line_truth = float(np.max(lm.force))
     found = diag.flat
     return {
-        "case": p.passage_id, "source": "own", "kind": kind,
-        "true_length": tread.length if tread else 0.0, "true_depth": tread.depth if tread else None,
-        "speed_kmh": p.speed * 3.6, "true_damping_ratio": zeta,
+        "case": p.passage_id,
+        "source": "own",
+        "kind": kind,
+        "true_length": tread.length if tread else 0.0,
+        "true_depth": tread.depth if tread else None,
+        "speed_kmh": p.speed * 3.6,
+        "true_damping_ratio": zeta,
         "fitted_damping_ratio": curves.estimate.damping_ratio,
         "found_kind": found.kind if found else None,
         "found_length": found.length if found else 0.0,
         "length_low": found.length_low if found else None,
         "length_high": found.length_high if found else None,
         "found_depth": found.depth if found else None,
-        "best_kind": curves.estimate.best_kind, "best_length": curves.estimate.best_length,
-        "verdict": diag.verdict, "reasons": diag.reasons,
-        "peak_measured": diag.peak_force_measured, "true_peak": m.true_peak_force,
-        "explained": diag.explained, "noise_level": diag.noise_level, "true_noise": noise * p.load,
-        "fit_rms": diag.fit_rms, "line_truth": line_truth,
+        "best_kind": curves.estimate.best_kind,
+        "best_length": curves.estimate.best_length,
+        "verdict": diag.verdict,
+        "reasons": diag.reasons,
+        "peak_measured": diag.peak_force_measured,
+        "true_peak": m.true_peak_force,
+        "explained": diag.explained,
+        "noise_level": diag.noise_level,
+        "true_noise": noise * p.load,
+        "fit_rms": diag.fit_rms,
+        "line_truth": line_truth,
         "line_point": diag.peak_force_at_line_speed,
         "line_low": diag.peak_force_at_line_speed_low,
         "line_high": diag.peak_force_at_line_speed_high,
-        "wall_time": diag.wall_time, "fit_time": curves.estimate.wall_time, "cpu_time": cpu,
-        "significance": curves.estimate.significance, "contrast": curves.estimate.contrast,
+        "wall_time": diag.wall_time,
+        "fit_time": curves.estimate.wall_time,
+        "cpu_time": cpu,
+        "significance": curves.estimate.significance,
+        "contrast": curves.estimate.contrast,
     }
 
 

@@ -48,20 +48,33 @@ def load_case(case_id: str, directory: Path = WIDE_DIR) -> WideCase:
     meta = json.loads((directory / f"{case_id}.json").read_text(encoding="utf-8"))
     site = load_site(directory / f"{case_id}.site.toml")
     passage = WheelPassage(
-        passage_id=case_id.lower(), train_id="wide", axle_index=0, side="right", timestamp=0.0,
-        speed=float(meta["V"]), load=float(meta["P"]), mass=float(meta["m"]),
+        passage_id=case_id.lower(),
+        train_id="wide",
+        axle_index=0,
+        side="right",
+        timestamp=0.0,
+        speed=float(meta["V"]),
+        load=float(meta["P"]),
+        mass=float(meta["m"]),
         radius=float(meta["R"]),
     )
     data = np.loadtxt(directory / f"{case_id}.csv", delimiter=",", skiprows=1)
     t, f = data[:, 0], data[:, 1]
     rate = float(meta["sensor"]["fs_Hz"])
-    measured = MeasuredPassage(passage_id=passage.passage_id, sample_rate=rate,
-                               t_start=float(t[0]), force=f.tolist())
+    measured = MeasuredPassage(
+        passage_id=passage.passage_id, sample_rate=rate, t_start=float(t[0]), force=f.tolist()
+    )
     line = json.loads((directory / "line_speed_truth.json").read_text(encoding="utf-8"))
     got = line["passages"].get(case_id)
-    return WideCase(case_id, site, passage, measured, meta["truth"],
-                    float(meta["foundation"]["zeta"]),
-                    float(got["peak_measured"]) if got else None)
+    return WideCase(
+        case_id,
+        site,
+        passage,
+        measured,
+        meta["truth"],
+        float(meta["foundation"]["zeta"]),
+        float(got["peak_measured"]) if got else None,
+    )
 
 
 def run_case(c: WideCase) -> dict[str, Any]:
@@ -74,18 +87,23 @@ def run_case(c: WideCase) -> dict[str, Any]:
     found = diag.flat
     meta_speed = c.passage.speed
     return {
-        "case": c.case_id, "source": "wide", "kind": kind,
+        "case": c.case_id,
+        "source": "wide",
+        "kind": kind,
         "true_length": float(tr["flat_length_m"] or 0.0),
         "true_depth": float(tr["flat_depth_m"]) if tr.get("flat_depth_m") else None,
-        "speed_kmh": meta_speed * 3.6, "true_damping_ratio": c.zeta,
+        "speed_kmh": meta_speed * 3.6,
+        "true_damping_ratio": c.zeta,
         "fitted_damping_ratio": curves.estimate.damping_ratio,
         "found_kind": found.kind if found else None,
         "found_length": found.length if found else 0.0,
         "length_low": found.length_low if found else None,
         "length_high": found.length_high if found else None,
         "found_depth": found.depth if found else None,
-        "best_kind": curves.estimate.best_kind, "best_length": curves.estimate.best_length,
-        "verdict": diag.verdict, "reasons": diag.reasons,
+        "best_kind": curves.estimate.best_kind,
+        "best_length": curves.estimate.best_length,
+        "verdict": diag.verdict,
+        "reasons": diag.reasons,
         "peak_measured": diag.peak_force_measured,
         "true_peak": float(tr["true_F_max_in_site"]),
         "explained": getattr(diag, "explained", None),
@@ -95,20 +113,38 @@ def run_case(c: WideCase) -> dict[str, Any]:
         "line_point": diag.peak_force_at_line_speed,
         "line_low": getattr(diag, "peak_force_at_line_speed_low", None),
         "line_high": getattr(diag, "peak_force_at_line_speed_high", None),
-        "wall_time": diag.wall_time, "fit_time": curves.estimate.wall_time, "cpu_time": cpu,
-        "significance": curves.estimate.significance, "contrast": curves.estimate.contrast,
+        "wall_time": diag.wall_time,
+        "fit_time": curves.estimate.wall_time,
+        "cpu_time": cpu,
+        "significance": curves.estimate.significance,
+        "contrast": curves.estimate.contrast,
     }
 
 
 def summary_line(r: dict[str, Any]) -> str:
-    ll = "" if r["line_truth"] is None else (
-        f" line {r['line_point'] / 1e3:6.0f} kN vs {r['line_truth'] / 1e3:6.0f}"
-        + ("" if r["line_low"] is None else f" [{r['line_low'] / 1e3:.0f}, {r['line_high'] / 1e3:.0f}]"))
-    iv = "" if r["length_low"] is None else f" [{r['length_low'] * 1e3:5.1f},{r['length_high'] * 1e3:5.1f}]"
-    return (f"{r['case']} {r['kind']:12s} {r['true_length'] * 1e3:6.1f} mm @ {r['speed_kmh']:5.0f} "
-            f"km/h z {r['true_damping_ratio']:.2f}->{r['fitted_damping_ratio']:.2f} -> "
-            f"{r['found_kind']!s:12s} {r['found_length'] * 1e3:6.1f}{iv} {r['verdict']:7s} "
-            f"expl {r['explained']} rms {r['fit_rms'] / 1e3:.1f} kN{ll} {r['wall_time']:.2f} s")
+    ll = (
+        ""
+        if r["line_truth"] is None
+        else (
+            f" line {r['line_point'] / 1e3:6.0f} kN vs {r['line_truth'] / 1e3:6.0f}"
+            + (
+                ""
+                if r["line_low"] is None
+                else f" [{r['line_low'] / 1e3:.0f}, {r['line_high'] / 1e3:.0f}]"
+            )
+        )
+    )
+    iv = (
+        ""
+        if r["length_low"] is None
+        else f" [{r['length_low'] * 1e3:5.1f},{r['length_high'] * 1e3:5.1f}]"
+    )
+    return (
+        f"{r['case']} {r['kind']:12s} {r['true_length'] * 1e3:6.1f} mm @ {r['speed_kmh']:5.0f} "
+        f"km/h z {r['true_damping_ratio']:.2f}->{r['fitted_damping_ratio']:.2f} -> "
+        f"{r['found_kind']!s:12s} {r['found_length'] * 1e3:6.1f}{iv} {r['verdict']:7s} "
+        f"expl {r['explained']} rms {r['fit_rms'] / 1e3:.1f} kN{ll} {r['wall_time']:.2f} s"
+    )
 
 
 def run_all(ids: list[str]) -> list[dict[str, Any]]:
@@ -121,8 +157,9 @@ def run_all(ids: list[str]) -> list[dict[str, Any]]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m validation.wide_set",
-                                description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(
+        prog="python -m validation.wide_set", description=__doc__.split("\n")[0]
+    )
     p.add_argument("--only", default=None, help="comma-separated case ids")
     p.add_argument("--out", type=Path, default=None)
     a = p.parse_args(argv)

@@ -54,11 +54,27 @@ def _openssl(*args: str) -> None:
 def make_ca(out: Path, days: int = 365) -> tuple[Path, Path]:
     """``out/ca.pem`` and ``out/ca.key``: a self-signed CA (EC P-256)."""
     cert, key = out / "ca.pem", out / "ca.key"
-    _openssl("req", "-x509", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1",
-             "-nodes", "-keyout", str(key), "-out", str(cert), "-days", str(days),
-             "-subj", "/CN=railtwin-test-ca",
-             "-addext", "basicConstraints=critical,CA:TRUE",
-             "-addext", "keyUsage=critical,keyCertSign,cRLSign")
+    _openssl(
+        "req",
+        "-x509",
+        "-newkey",
+        "ec",
+        "-pkeyopt",
+        "ec_paramgen_curve:prime256v1",
+        "-nodes",
+        "-keyout",
+        str(key),
+        "-out",
+        str(cert),
+        "-days",
+        str(days),
+        "-subj",
+        "/CN=railtwin-test-ca",
+        "-addext",
+        "basicConstraints=critical,CA:TRUE",
+        "-addext",
+        "keyUsage=critical,keyCertSign,cRLSign",
+    )
     return cert, key
 
 
@@ -66,16 +82,45 @@ def make_leaf(out: Path, name: str, ca: tuple[Path, Path], days: int = 365) -> t
     """``out/<name>.pem`` and ``out/<name>.key``: CN ``name``, signed by ``ca``, for TLS
     servers and clients alike (a Zenoh peer both listens and connects)."""
     cert, key, csr = out / f"{name}.pem", out / f"{name}.key", out / f"{name}.csr"
-    _openssl("req", "-new", "-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1",
-             "-nodes", "-keyout", str(key), "-out", str(csr), "-subj", f"/CN={name}")
+    _openssl(
+        "req",
+        "-new",
+        "-newkey",
+        "ec",
+        "-pkeyopt",
+        "ec_paramgen_curve:prime256v1",
+        "-nodes",
+        "-keyout",
+        str(key),
+        "-out",
+        str(csr),
+        "-subj",
+        f"/CN={name}",
+    )
     with tempfile.NamedTemporaryFile("w", suffix=".ext", dir=out, delete=False) as ext:
-        ext.write(f"{SAN}\nbasicConstraints=CA:FALSE\n"
-                  "keyUsage=critical,digitalSignature,keyEncipherment\n"
-                  "extendedKeyUsage=serverAuth,clientAuth\n")
+        ext.write(
+            f"{SAN}\nbasicConstraints=CA:FALSE\n"
+            "keyUsage=critical,digitalSignature,keyEncipherment\n"
+            "extendedKeyUsage=serverAuth,clientAuth\n"
+        )
     try:
-        _openssl("x509", "-req", "-in", str(csr), "-CA", str(ca[0]), "-CAkey", str(ca[1]),
-                 "-CAcreateserial", "-out", str(cert), "-days", str(days),
-                 "-extfile", ext.name)
+        _openssl(
+            "x509",
+            "-req",
+            "-in",
+            str(csr),
+            "-CA",
+            str(ca[0]),
+            "-CAkey",
+            str(ca[1]),
+            "-CAcreateserial",
+            "-out",
+            str(cert),
+            "-days",
+            str(days),
+            "-extfile",
+            ext.name,
+        )
     finally:
         Path(ext.name).unlink()
         csr.unlink()

@@ -40,8 +40,9 @@ def vehicle_number(car: int) -> str:
     """A European Vehicle Number 61 80 2090 1cc-k (coach, Germany), with its Luhn check
     digit k, as a key chunk (spaces as '-')."""
     digits = f"618020901{car + 1:02d}"
-    total = sum(sum(divmod(int(d) * (2 if i % 2 == 0 else 1), 10))
-                for i, d in enumerate(reversed(digits)))
+    total = sum(
+        sum(divmod(int(d) * (2 if i % 2 == 0 else 1), 10)) for i, d in enumerate(reversed(digits))
+    )
     check = (10 - total % 10) % 10
     return f"{digits[:2]}-{digits[2:4]}-{digits[4:8]}-{digits[8:]}-{check}"
 
@@ -99,8 +100,8 @@ def main() -> None:
         "train_id": "ic802",
         "description": "8 cars, 32 axles at 160 km/h; axle 13 has a measured 0.38 mm wheel flat",
         "source": "axle 13 tread: flat_0p3_03.dat, supplementary material of 'A methodology of "
-                  "three-dimensional wheel flat modeling', Applied Sciences 14(13) 5956, 2024, "
-                  "CC BY 4.0",
+        "three-dimensional wheel flat modeling', Applied Sciences 14(13) 5956, 2024, "
+        "CC BY 4.0",
         "wheels": wheels,
     }
     (HERE / "train_160kmh.json").write_text(json.dumps(train) + "\n", encoding="utf-8")

@@ -33,19 +33,33 @@ RAILTWIN = (sys.executable, "-m", "service.cli")
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--site", type=Path, default=ROOT / "examples/site.toml",
-                   help="site file (default examples/site.toml)")
-    p.add_argument("--train", type=Path, default=ROOT / "recordings/samples/train_160kmh.json",
-                   help="train file (default recordings/samples/train_160kmh.json)")
-    p.add_argument("--recordings", type=Path, default=ROOT / "recordings",
-                   help="where the MCAP log and the .rrd go (default recordings/)")
+    p.add_argument(
+        "--site",
+        type=Path,
+        default=ROOT / "examples/site.toml",
+        help="site file (default examples/site.toml)",
+    )
+    p.add_argument(
+        "--train",
+        type=Path,
+        default=ROOT / "recordings/samples/train_160kmh.json",
+        help="train file (default recordings/samples/train_160kmh.json)",
+    )
+    p.add_argument(
+        "--recordings",
+        type=Path,
+        default=ROOT / "recordings",
+        help="where the MCAP log and the .rrd go (default recordings/)",
+    )
 
 
 def register(subparsers: SubParsers) -> argparse.ArgumentParser:
     """Add ``demo`` to the ``railtwin`` CLI's subparsers."""
     p: argparse.ArgumentParser = subparsers.add_parser(
-        "demo", help="the twin on loopback with a sample train streamed through it (make demo)",
-        description=__doc__.split("\n")[0])
+        "demo",
+        help="the twin on loopback with a sample train streamed through it (make demo)",
+        description=__doc__.split("\n")[0],
+    )
     add_arguments(p)
     p.set_defaults(func=run)
     return p
@@ -61,30 +75,70 @@ def run(args: argparse.Namespace) -> int:
     """Start the twin, stream the train and the measurements, print where the files are."""
     site = load_site(args.site)
     endpoint = free_tcp_endpoint()
-    print(f"demo: starting railtwin serve for site {site.site_id!r} on {endpoint} "
-          "(the first start compiles the physics: allow a few minutes; up to 15 are waited for)", flush=True)
-    with tempfile.TemporaryDirectory(prefix="railtwin-demo-state-") as state, ServiceProcess(
-        args.site, listen=endpoint, recordings=args.recordings, start_timeout=900.0,
-        extra_args=("--state", state),
-    ) as svc:
+    print(
+        f"demo: starting railtwin serve for site {site.site_id!r} on {endpoint} "
+        "(the first start compiles the physics: allow a few minutes; up to 15 are waited for)",
+        flush=True,
+    )
+    with (
+        tempfile.TemporaryDirectory(prefix="railtwin-demo-state-") as state,
+        ServiceProcess(
+            args.site,
+            listen=endpoint,
+            recordings=args.recordings,
+            start_timeout=900.0,
+            extra_args=("--state", state),
+        ) as svc,
+    ):
         saved = args.recordings / "demo-measured.json"
         args.recordings.mkdir(parents=True, exist_ok=True)
-        measured_cmd = [*RAILTWIN, "feed-measured", "--train",
-                        str(args.train), "--site-file", str(args.site)]
-        print("demo: the site's measured force of four wheels, made by the generator "
-              "(each wheel's own outline, unknown roughness and damping, sensor noise)",
-              flush=True)
+        measured_cmd = [
+            *RAILTWIN,
+            "feed-measured",
+            "--train",
+            str(args.train),
+            "--site-file",
+            str(args.site),
+        ]
+        print(
+            "demo: the site's measured force of four wheels, made by the generator "
+            "(each wheel's own outline, unknown roughness and damping, sensor noise)",
+            flush=True,
+        )
         subprocess.run([*measured_cmd, "--save", str(saved)], cwd=ROOT, check=False)
-        print("demo: streaming the train; each measurement follows its wheel off the site, "
-              "and the twin diagnoses it while the train streams", flush=True)
+        print(
+            "demo: streaming the train; each measurement follows its wheel off the site, "
+            "and the twin diagnoses it while the train streams",
+            flush=True,
+        )
         measured_proc = subprocess.Popen(
-            [*measured_cmd, "--load", str(saved), "--with-train", "--connect", endpoint,
-             "--timeout", "120"], cwd=ROOT,
+            [
+                *measured_cmd,
+                "--load",
+                str(saved),
+                "--with-train",
+                "--connect",
+                endpoint,
+                "--timeout",
+                "120",
+            ],
+            cwd=ROOT,
         )
         feeder = subprocess.run(
-            [*RAILTWIN, "feed", "--train", str(args.train),
-             "--site", site.site_id, "--connect", endpoint, "--timeout", "300"],
-            cwd=ROOT, check=False,
+            [
+                *RAILTWIN,
+                "feed",
+                "--train",
+                str(args.train),
+                "--site",
+                site.site_id,
+                "--connect",
+                endpoint,
+                "--timeout",
+                "300",
+            ],
+            cwd=ROOT,
+            check=False,
         )
         measured_code = measured_proc.wait()
     if svc.returncode != 0:

@@ -37,11 +37,19 @@ def register(subparsers: SubParsers) -> None:
     )
     p.add_argument("--site", required=True, type=Path, help="site file (TOML)")
     p.add_argument("--passage", required=True, type=Path, help="WheelPassage JSON file")
-    p.add_argument("--measured", required=True, type=Path,
-                   help="measured force: CSV (t_s,force_N) or railtwin .mcap")
+    p.add_argument(
+        "--measured",
+        required=True,
+        type=Path,
+        help="measured force: CSV (t_s,force_N) or railtwin .mcap",
+    )
     p.add_argument("--out", type=Path, default=None, help="write the Diagnosis JSON here")
-    p.add_argument("--format", choices=("table", "json"), default="table",
-                   help="stdout: a table for people (default) or the JSON")
+    p.add_argument(
+        "--format",
+        choices=("table", "json"),
+        default="table",
+        help="stdout: a table for people (default) or the JSON",
+    )
     p.set_defaults(func=cmd_diagnose)
 
 
@@ -53,26 +61,45 @@ def table(d: Diagnosis) -> str:
     else:
         f = d.flat
         rows += [
-            ("flat", f"{f.kind}, {f.length * 1e3:.1f} mm "
-                     f"[{f.length_low * 1e3:.1f}, {f.length_high * 1e3:.1f}] mm"),
-            ("depth", f"{f.depth * 1e3:.3f} mm"
-                      + ("" if f.depth_factor is None or f.kind == "flat"
-                         else f" ({f.depth_factor:.2f} x l²/16R)")),
+            (
+                "flat",
+                f"{f.kind}, {f.length * 1e3:.1f} mm "
+                f"[{f.length_low * 1e3:.1f}, {f.length_high * 1e3:.1f}] mm",
+            ),
+            (
+                "depth",
+                f"{f.depth * 1e3:.3f} mm"
+                + (
+                    ""
+                    if f.depth_factor is None or f.kind == "flat"
+                    else f" ({f.depth_factor:.2f} x l²/16R)"
+                ),
+            ),
             ("phase", f"{f.phase:.3f} rad"),
         ]
     rows += [
         ("peak force measured", f"{d.peak_force_measured * kn:.1f} kN"),
         ("peak force of the fit", f"{d.peak_force_fit * kn:.1f} kN"),
         ("fit rms", f"{d.fit_rms * kn:.1f} kN"),
-        ("peak at line speed", "—" if d.peak_force_at_line_speed is None
-         else f"{d.peak_force_at_line_speed * kn:.1f} kN"
-         + ("" if d.peak_force_at_line_speed_low is None
-            or d.peak_force_at_line_speed_high is None else
-            f" [{d.peak_force_at_line_speed_low * kn:.0f}, "
-            f"{d.peak_force_at_line_speed_high * kn:.0f}] kN")),
-        ("explained", "—" if d.explained is None else
-         f"{'yes' if d.explained else 'NO'} (residual {d.fit_residual_ratio or 0:.1f} x the "
-         f"record's noise {(d.noise_level or 0) * kn:.2f} kN)"),
+        (
+            "peak at line speed",
+            "—"
+            if d.peak_force_at_line_speed is None
+            else f"{d.peak_force_at_line_speed * kn:.1f} kN"
+            + (
+                ""
+                if d.peak_force_at_line_speed_low is None or d.peak_force_at_line_speed_high is None
+                else f" [{d.peak_force_at_line_speed_low * kn:.0f}, "
+                f"{d.peak_force_at_line_speed_high * kn:.0f}] kN"
+            ),
+        ),
+        (
+            "explained",
+            "—"
+            if d.explained is None
+            else f"{'yes' if d.explained else 'NO'} (residual {d.fit_residual_ratio or 0:.1f} x the "
+            f"record's noise {(d.noise_level or 0) * kn:.2f} kN)",
+        ),
         ("wall time", f"{d.wall_time:.2f} s"),
     ]
     w = max(len(k) for k, _ in rows)
@@ -100,14 +127,18 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     except ValidationError as exc:
         e = exc.errors()[0]
         where = ".".join(map(str, e["loc"])) or "(whole)"
-        raise CommandError(f"invalid passage {args.passage}: {where}: {e['msg']}",
-                           EXIT_USAGE) from None
+        raise CommandError(
+            f"invalid passage {args.passage}: {where}: {e['msg']}", EXIT_USAGE
+        ) from None
     try:
         measured = read_measured(args.measured, passage.passage_id)
     except MeasuredFileError as exc:
         raise CommandError(str(exc), EXIT_USAGE) from None
-    print(f"railtwin diagnose: fitting {measured.samples} samples of {passage.passage_id} ...",
-          file=sys.stderr, flush=True)
+    print(
+        f"railtwin diagnose: fitting {measured.samples} samples of {passage.passage_id} ...",
+        file=sys.stderr,
+        flush=True,
+    )
     try:
         diagnosis, _ = Diagnoser(site).diagnose(passage, measured)
     except MeasurementError as exc:

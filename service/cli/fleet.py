@@ -35,52 +35,105 @@ exit status:
 
 
 def _zenoh_args(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
-                   help="Zenoh endpoint to connect to, e.g. a router's tcp/10.0.0.1:7447 "
-                        "(repeatable)")
-    p.add_argument("--listen", action="append", default=[], metavar="ENDPOINT",
-                   help="Zenoh endpoint to listen on (repeatable)")
-    p.add_argument("--zenoh-config", type=Path, default=None, metavar="FILE",
-                   help="Zenoh JSON5 config file (TLS, access control); --connect/--listen "
-                        "apply on top of it")
-    p.add_argument("--mode", choices=("peer", "client"), default="peer",
-                   help="Zenoh mode (default peer; client: through the router only)")
+    p.add_argument(
+        "--connect",
+        action="append",
+        default=[],
+        metavar="ENDPOINT",
+        help="Zenoh endpoint to connect to, e.g. a router's tcp/10.0.0.1:7447 (repeatable)",
+    )
+    p.add_argument(
+        "--listen",
+        action="append",
+        default=[],
+        metavar="ENDPOINT",
+        help="Zenoh endpoint to listen on (repeatable)",
+    )
+    p.add_argument(
+        "--zenoh-config",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="Zenoh JSON5 config file (TLS, access control); --connect/--listen apply on top of it",
+    )
+    p.add_argument(
+        "--mode",
+        choices=("peer", "client"),
+        default="peer",
+        help="Zenoh mode (default peer; client: through the router only)",
+    )
 
 
 def register(subparsers: Any) -> argparse.ArgumentParser:
     """Add ``fleet`` (with ``serve``, ``wheel``, ``alarms``) to the ``railtwin`` CLI."""
     p: argparse.ArgumentParser = subparsers.add_parser(
-        "fleet", help="the fleet service: every wheel's history, trend and alarms",
+        "fleet",
+        help="the fleet service: every wheel's history, trend and alarms",
         description="The fleet service and its clients (docs/fleet.md).",
-        epilog=EXIT_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+        epilog=EXIT_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     sub = p.add_subparsers(dest="fleet_command", required=True, metavar="COMMAND")
-    s = sub.add_parser("serve", help="store every site's diagnoses, raise alarms, answer queries",
-                       epilog=EXIT_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    s = sub.add_parser(
+        "serve",
+        help="store every site's diagnoses, raise alarms, answer queries",
+        epilog=EXIT_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     _zenoh_args(s)
-    s.add_argument("--db", default="fleet.sqlite",
-                   help="SQLite file (default fleet.sqlite) or postgresql://user@host/db")
-    s.add_argument("--http", default=None, metavar="HOST:PORT",
-                   help="serve the dashboard here, e.g. 127.0.0.1:8080")
-    s.add_argument("--limits", type=Path, default=None, metavar="SITE.toml",
-                   help="forecast against this site file's [diagnosis] limits (default: the "
-                        "defaults, 40/60 mm and 350/400 kN for inspect/remove)")
-    s.add_argument("--horizon-days", type=float, default=30.0,
-                   help="raise a forecast alarm when a limit is predicted within this many "
-                        "days of the wheel's latest diagnosis (default 30)")
-    s.add_argument("--catch-up-margin", type=float, default=3600.0, metavar="S",
-                   help="on start, ask the twins for diagnoses since the latest stored time "
-                        "minus this (default 3600 s)")
+    s.add_argument(
+        "--db",
+        default="fleet.sqlite",
+        help="SQLite file (default fleet.sqlite) or postgresql://user@host/db",
+    )
+    s.add_argument(
+        "--http",
+        default=None,
+        metavar="HOST:PORT",
+        help="serve the dashboard here, e.g. 127.0.0.1:8080",
+    )
+    s.add_argument(
+        "--limits",
+        type=Path,
+        default=None,
+        metavar="SITE.toml",
+        help="forecast against this site file's [diagnosis] limits (default: the "
+        "defaults, 40/60 mm and 350/400 kN for inspect/remove)",
+    )
+    s.add_argument(
+        "--horizon-days",
+        type=float,
+        default=30.0,
+        help="raise a forecast alarm when a limit is predicted within this many "
+        "days of the wheel's latest diagnosis (default 30)",
+    )
+    s.add_argument(
+        "--catch-up-margin",
+        type=float,
+        default=3600.0,
+        metavar="S",
+        help="on start, ask the twins for diagnoses since the latest stored time "
+        "minus this (default 3600 s)",
+    )
     s.add_argument("--no-catch-up", action="store_true", help="do not ask the twins on start")
     s.set_defaults(func=cmd_serve)
-    w = sub.add_parser("wheel", help="print a wheel's history and trend",
-                       epilog=EXIT_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    w = sub.add_parser(
+        "wheel",
+        help="print a wheel's history and trend",
+        epilog=EXIT_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     w.add_argument("wheel_id", metavar="VEHICLE/WHEELSET/SIDE", help="e.g. V123/2/left")
     _zenoh_args(w)
     w.add_argument("--json", action="store_true", help="print the JSON document")
     w.add_argument("--timeout", type=float, default=5.0, help="s to wait for the fleet")
     w.set_defaults(func=cmd_wheel)
-    a = sub.add_parser("alarms", help="print the fleet's alarms",
-                       epilog=EXIT_HELP, formatter_class=argparse.RawDescriptionHelpFormatter)
+    a = sub.add_parser(
+        "alarms",
+        help="print the fleet's alarms",
+        epilog=EXIT_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     _zenoh_args(a)
     a.add_argument("--all", action="store_true", help="cleared alarms too")
     a.add_argument("--json", action="store_true", help="print the JSON document")
@@ -92,8 +145,9 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
 def _config(args: argparse.Namespace) -> Any:
     from service.wire.zenoh_session import build_config
 
-    return build_config(listen=args.listen, connect=args.connect,
-                        config_file=args.zenoh_config, mode=args.mode)
+    return build_config(
+        listen=args.listen, connect=args.connect, config_file=args.zenoh_config, mode=args.mode
+    )
 
 
 def _err(message: str) -> None:
@@ -114,8 +168,9 @@ def cmd_serve(args: argparse.Namespace) -> int:
     from service.fleet.service import FleetService
     from service.fleet.store import StoreError, open_store
 
-    logging.basicConfig(level=logging.INFO, stream=sys.stderr,
-                        format="fleet %(asctime)s %(levelname)s %(message)s")
+    logging.basicConfig(
+        level=logging.INFO, stream=sys.stderr, format="fleet %(asctime)s %(levelname)s %(message)s"
+    )
     try:
         limits = FleetLimits.from_site_file(args.limits) if args.limits else FleetLimits.defaults()
         http = parse_http(args.http) if args.http else None
@@ -140,8 +195,13 @@ def cmd_serve(args: argparse.Namespace) -> int:
         return EXIT_FAILURE
     dashboard = None
     try:
-        svc = FleetService(session, store, limits=limits, horizon=args.horizon_days * 86400.0,
-                           catch_up_margin=args.catch_up_margin)
+        svc = FleetService(
+            session,
+            store,
+            limits=limits,
+            horizon=args.horizon_days * 86400.0,
+            catch_up_margin=args.catch_up_margin,
+        )
         svc.start(catch_up=not args.no_catch_up)
         url = ""
         if http is not None:
@@ -154,8 +214,10 @@ def cmd_serve(args: argparse.Namespace) -> int:
                 return EXIT_FAILURE
             dashboard.start()
             url = f", dashboard {dashboard.url}"
-        print(f"fleet: ready ({store.dialect} {store.where}, {store.count()} diagnoses "
-              f"stored{url})", flush=True)
+        print(
+            f"fleet: ready ({store.dialect} {store.where}, {store.count()} diagnoses stored{url})",
+            flush=True,
+        )
         while not stop.wait(0.5):
             pass
         return EXIT_OK
@@ -197,8 +259,10 @@ def cmd_wheel(args: argparse.Namespace) -> int:
         return EXIT_USAGE
     got = _get_one(args, wheel_key(args.wheel_id))
     if got is None:
-        _err(f"no fleet service answered within {args.timeout:g} s (is `railtwin fleet serve` "
-             "running and reachable at --connect?)")
+        _err(
+            f"no fleet service answered within {args.timeout:g} s (is `railtwin fleet serve` "
+            "running and reachable at --connect?)"
+        )
         return EXIT_FAILURE
     status, doc = got
     if status == "err":
@@ -242,24 +306,36 @@ def wheel_table(doc: dict[str, Any]) -> str:
     sites = sorted({h["site_id"] for h in hist})
     sw = max([4, *(len(h["site_id"]) for h in hist)])
     pw = max([7, *(len(h["passage_id"]) for h in hist)])
-    lines = [f"wheel {doc['wheel_id']}: last verdict {doc['last_verdict']}, {len(hist)} "
-             f"diagnoses at {len(sites)} site(s) ({', '.join(sites)})", "",
-             f"{'date (UTC)':<17} {'site':<{sw}} {'passage':<{pw}} {'verdict':<8} "
-             f"{'flat mm [95 %]':<20} {'F@line kN':>9} {'speed m/s':>9}"]
+    lines = [
+        f"wheel {doc['wheel_id']}: last verdict {doc['last_verdict']}, {len(hist)} "
+        f"diagnoses at {len(sites)} site(s) ({', '.join(sites)})",
+        "",
+        f"{'date (UTC)':<17} {'site':<{sw}} {'passage':<{pw}} {'verdict':<8} "
+        f"{'flat mm [95 %]':<20} {'F@line kN':>9} {'speed m/s':>9}",
+    ]
     for h in hist:
         f = h["flat"]
-        flat = "-" if f is None else (f"{f['length'] * 1e3:.1f} [{f['length_low'] * 1e3:.1f}-"
-                                      f"{f['length_high'] * 1e3:.1f}]")
+        flat = (
+            "-"
+            if f is None
+            else (
+                f"{f['length'] * 1e3:.1f} [{f['length_low'] * 1e3:.1f}-"
+                f"{f['length_high'] * 1e3:.1f}]"
+            )
+        )
         fl = h["peak_force_at_line_speed"]
         sp = h["speed"]
-        lines.append(f"{_date(h['timestamp']):<17} {h['site_id']:<{sw}} {h['passage_id']:<{pw}} "
-                     f"{h['verdict']:<8} {flat:<20} {'-' if fl is None else f'{fl / 1e3:.0f}':>9} "
-                     f"{'-' if sp is None else f'{sp:.1f}':>9}")
+        lines.append(
+            f"{_date(h['timestamp']):<17} {h['site_id']:<{sw}} {h['passage_id']:<{pw}} "
+            f"{h['verdict']:<8} {flat:<20} {'-' if fl is None else f'{fl / 1e3:.0f}':>9} "
+            f"{'-' if sp is None else f'{sp:.1f}':>9}"
+        )
     tr = doc["trend"]
     lines.append("")
-    for name, label, scale, unit in (("flat_length", "flat length", 1e3, "mm"),
-                                     ("peak_force_at_line_speed", "peak force at line speed",
-                                      1e-3, "kN")):
+    for name, label, scale, unit in (
+        ("flat_length", "flat length", 1e3, "mm"),
+        ("peak_force_at_line_speed", "peak force at line speed", 1e-3, "kN"),
+    ):
         t = tr[name]
         if t is None:
             lines.append(f"trend of {label}: not determined (too few diagnoses with a flat)")
@@ -270,15 +346,20 @@ def wheel_table(doc: dict[str, Any]) -> str:
             if c["status"] == "not_growing":
                 parts.append(f"{lim}: not growing")
                 continue
-            when = "reached" if c["status"] == "reached" else f"predicted {_date(c['at'], '%Y-%m-%d')}"
+            when = (
+                "reached" if c["status"] == "reached" else f"predicted {_date(c['at'], '%Y-%m-%d')}"
+            )
             span = ""
             if c["earliest"] is not None:
                 span = f" (95 % {_date(c['earliest'], '%Y-%m-%d')} .. " + (
-                    f"{_date(c['latest'], '%Y-%m-%d')})" if c["latest"] is not None else "open)")
+                    f"{_date(c['latest'], '%Y-%m-%d')})" if c["latest"] is not None else "open)"
+                )
             parts.append(f"{lim}: {when}{span}")
-        lines.append(f"trend of {label} since {_date(tr['since'], '%Y-%m-%d')}: "
-                     f"{t['slope_per_day'] * scale:+.3g} ± {t['slope_se_per_day'] * scale:.2g} "
-                     f"{unit}/day over {t['points']} diagnoses; " + "; ".join(parts))
+        lines.append(
+            f"trend of {label} since {_date(tr['since'], '%Y-%m-%d')}: "
+            f"{t['slope_per_day'] * scale:+.3g} ± {t['slope_se_per_day'] * scale:.2g} "
+            f"{unit}/day over {t['points']} diagnoses; " + "; ".join(parts)
+        )
     lines.append("distance run: not in the messages (no odometer reading): not tracked")
     return "\n".join(lines) + "\n"
 

@@ -95,8 +95,9 @@ class Procs:
 
     def start(self, name: str, args: Sequence[str]) -> subprocess.Popen[bytes]:
         log = (self.out / f"{name}.log").open("wb")
-        p = subprocess.Popen([sys.executable, *args], cwd=ROOT, stdout=log,
-                             stderr=subprocess.STDOUT)
+        p = subprocess.Popen(
+            [sys.executable, *args], cwd=ROOT, stdout=log, stderr=subprocess.STDOUT
+        )
         self.procs.append((name, p))
         return p
 
@@ -125,7 +126,7 @@ def _site_files(out: Path, template: Path) -> list[Path]:
     files = []
     for site in SITES:
         f = out / f"{site}.toml"
-        f.write_text(re.sub(r'(?m)^site_id\s*=.*$', f'site_id = "{site}"', text), encoding="utf-8")
+        f.write_text(re.sub(r"(?m)^site_id\s*=.*$", f'site_id = "{site}"', text), encoding="utf-8")
         files.append(f)
     return files
 
@@ -140,13 +141,22 @@ def _wait(what: str, predicate: Any, timeout: float, procs: Procs) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m service.cli.fleet_demo",
-                                description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(
+        prog="python -m service.cli.fleet_demo", description=__doc__.split("\n")[0]
+    )
     p.add_argument("--out", type=Path, default=ROOT / "recordings/fleet-demo")
-    p.add_argument("--site", type=Path, default=ROOT / "examples/site.toml",
-                   help="the site file the three sites are made from")
-    p.add_argument("--linger", type=float, default=60.0,
-                   help="s to keep the dashboard up at the end (Ctrl-C ends early)")
+    p.add_argument(
+        "--site",
+        type=Path,
+        default=ROOT / "examples/site.toml",
+        help="the site file the three sites are made from",
+    )
+    p.add_argument(
+        "--linger",
+        type=float,
+        default=60.0,
+        help="s to keep the dashboard up at the end (Ctrl-C ends early)",
+    )
     p.add_argument("--router", metavar="ENDPOINT", default=None, help=argparse.SUPPRESS)
     a = p.parse_args(argv)
     if a.router:
@@ -158,7 +168,7 @@ def run_demo(out: Path, template: Path, linger: float) -> int:
     import zenoh
 
     from schemas.diagnosis import Diagnosis, MeasuredPassage
-    from schemas.messages import WheelPassage, WheelRef
+    from schemas.messages import Direction, WheelPassage, WheelRef
     from service.cli.fleet import wheel_table
     from service.clients.synthesize import measure
     from service.physics.diagnosis import Diagnoser
@@ -179,26 +189,59 @@ def run_demo(out: Path, template: Path, linger: float) -> int:
     print(f"fleet-demo: router on {router}; sites {', '.join(SITES)}; logs in {out}", flush=True)
     procs.start("router", router_command(router))
     for site, f in zip(SITES, files, strict=True):
-        procs.start(site, ["-m", "service.cli.serve", "--site", str(f), "--connect", router,
-                           "--recordings", str(out / site), "--state", str(out / site / "state"),
-                           "--no-rerun"])
-    procs.start("fleet", ["-m", "service.cli.fleet", "serve", "--connect", router, "--db",
-                          str(db), "--http", http, "--limits", str(template)])
+        procs.start(
+            site,
+            [
+                "-m",
+                "service.cli.serve",
+                "--site",
+                str(f),
+                "--connect",
+                router,
+                "--recordings",
+                str(out / site),
+                "--state",
+                str(out / site / "state"),
+                "--no-rerun",
+            ],
+        )
+    procs.start(
+        "fleet",
+        [
+            "-m",
+            "service.cli.fleet",
+            "serve",
+            "--connect",
+            router,
+            "--db",
+            str(db),
+            "--http",
+            http,
+            "--limits",
+            str(template),
+        ],
+    )
     alarms: list[dict[str, Any]] = []
     diagnoses: list[Diagnosis] = []
 
     def on_alarm(s: zenoh.Sample) -> None:
         a = json.loads(s.payload.to_bytes())
         alarms.append(a)
-        print(f"\n*** FLEET ALARM [{a['severity']}] {a['wheel_id']}: {a['reason']}\n"
-              f"    evidence: {', '.join(a['evidence'])}\n", flush=True)
+        print(
+            f"\n*** FLEET ALARM [{a['severity']}] {a['wheel_id']}: {a['reason']}\n"
+            f"    evidence: {', '.join(a['evidence'])}\n",
+            flush=True,
+        )
 
     def on_diagnosis(s: zenoh.Sample) -> None:
         d = Diagnosis.model_validate_json(s.payload.to_bytes())
         diagnoses.append(d)
         flat = "no flat" if d.flat is None else f"flat {d.flat.length * 1e3:.1f} mm"
-        fl = ("" if d.peak_force_at_line_speed is None
-              else f", {d.peak_force_at_line_speed / 1e3:.0f} kN at line speed")
+        fl = (
+            ""
+            if d.peak_force_at_line_speed is None
+            else f", {d.peak_force_at_line_speed / 1e3:.0f} kN at line speed"
+        )
         who = d.wheel.id if d.wheel is not None else d.passage_id
         print(f"  {d.site_id}: {who}: {d.verdict.upper()} ({flat}{fl})", flush=True)
 
@@ -211,8 +254,11 @@ def run_demo(out: Path, template: Path, linger: float) -> int:
             def answers(key: str) -> bool:
                 return any(r.ok is not None for r in session.get(key, timeout=1.0))
 
-            print("fleet-demo: waiting for the twins (the first start compiles the physics: "
-                  "allow a few minutes)", flush=True)
+            print(
+                "fleet-demo: waiting for the twins (the first start compiles the physics: "
+                "allow a few minutes)",
+                flush=True,
+            )
             for site in SITES:
                 _wait(f"twin {site}", lambda s=site: answers(f"railtwin/{s}/health"), 900, procs)
             _wait("the fleet", lambda: answers("railtwin/fleet/alarms"), 60, procs)
@@ -222,11 +268,14 @@ def run_demo(out: Path, template: Path, linger: float) -> int:
             diagnoser = Diagnoser(site_cfg)
             today = time.time() // DAY * DAY + 8 * 3600.0
             for day, (site, speed, flat_mm) in enumerate(zip(SITES, SPEEDS, FLAT_MM, strict=True)):
-                direction = "end1_leading" if day % 2 == 0 else "end2_leading"
+                direction: Direction = "end1_leading" if day % 2 == 0 else "end2_leading"
                 stamp = today - (len(SITES) - 1 - day) * DAY
-                print(f"\nfleet-demo: day {day + 1}, {time.strftime('%Y-%m-%d', time.gmtime(stamp))}"
-                      f": the train passes {site} at {speed:g} m/s ({direction}); the flat is "
-                      f"{flat_mm:g} mm", flush=True)
+                print(
+                    f"\nfleet-demo: day {day + 1}, {time.strftime('%Y-%m-%d', time.gmtime(stamp))}"
+                    f": the train passes {site} at {speed:g} m/s ({direction}); the flat is "
+                    f"{flat_mm:g} mm",
+                    flush=True,
+                )
                 pub_p = session.declare_publisher(f"railtwin/{site}/passage")
                 pub_m = session.declare_publisher(f"railtwin/{site}/measured")
                 sent = []
@@ -234,19 +283,43 @@ def run_demo(out: Path, template: Path, linger: float) -> int:
                     wheel = WheelRef(vehicle_id=VEHICLE, wheelset=WHEELSET, side=side)
                     pid = f"d{day + 1}-{VEHICLE}-ws{WHEELSET}-{side}"
                     passage = WheelPassage(
-                        passage_id=pid, train_id=f"ic802-d{day + 1}", axle_index=WHEELSET - 1,
-                        side=wheel.rail_side(direction), timestamp=stamp, speed=speed,  # type: ignore[arg-type]
-                        load=60e3, mass=600.0, radius=0.46, wheel=wheel, direction=direction)  # type: ignore[arg-type]
+                        passage_id=pid,
+                        train_id=f"ic802-d{day + 1}",
+                        axle_index=WHEELSET - 1,
+                        side=wheel.rail_side(direction),
+                        timestamp=stamp,
+                        speed=speed,
+                        load=60e3,
+                        mass=600.0,
+                        radius=0.46,
+                        wheel=wheel,
+                        direction=direction,
+                    )
                     tread = Flat.ideal(0.46, flat_mm * 1e-3, 1.0) if side == "left" else None
-                    m = measure(site_cfg, passage, tread, seed=100 + 2 * day + (side == "left"),
-                                diagnoser=diagnoser)
+                    m = measure(
+                        site_cfg,
+                        passage,
+                        tread,
+                        seed=100 + 2 * day + (side == "left"),
+                        diagnoser=diagnoser,
+                    )
                     pub_p.put(passage.model_dump_json())
-                    pub_m.put(MeasuredPassage(passage_id=pid, sample_rate=m.sample_rate,
-                                              t_start=m.t_start, force=m.force.tolist(),
-                                              speed=speed).model_dump_json())
+                    pub_m.put(
+                        MeasuredPassage(
+                            passage_id=pid,
+                            sample_rate=m.sample_rate,
+                            t_start=m.t_start,
+                            force=m.force.tolist(),
+                            speed=speed,
+                        ).model_dump_json()
+                    )
                     sent.append(pid)
-                _wait(f"{site}'s diagnoses", lambda sent=sent: {d.passage_id for d in diagnoses}
-                      >= set(sent), 600, procs)
+                _wait(
+                    f"{site}'s diagnoses",
+                    lambda sent=sent: {d.passage_id for d in diagnoses} >= set(sent),
+                    600,
+                    procs,
+                )
                 pub_p.undeclare()
                 pub_m.undeclare()
             flat_wheel = f"{VEHICLE}/{WHEELSET}/left"
@@ -258,25 +331,37 @@ def run_demo(out: Path, template: Path, linger: float) -> int:
                         return d
                 return None
 
-            _wait("the fleet's history", lambda: (d := doc()) is not None and
-                  len(d["history"]) == len(SITES), 60, procs)
+            _wait(
+                "the fleet's history",
+                lambda: (d := doc()) is not None and len(d["history"]) == len(SITES),
+                60,
+                procs,
+            )
             history = doc()
             assert history is not None
-            print("\nfleet-demo: the fleet's history of the flat wheel "
-                  f"(railtwin fleet wheel {flat_wheel} --connect {router}):\n", flush=True)
+            print(
+                "\nfleet-demo: the fleet's history of the flat wheel "
+                f"(railtwin fleet wheel {flat_wheel} --connect {router}):\n",
+                flush=True,
+            )
             print(wheel_table(history), flush=True)
             sites_seen = {h["site_id"] for h in history["history"]}
             ok = sites_seen == set(SITES) and any(a["wheel_id"] == flat_wheel for a in alarms)
             print(f"fleet-demo: {len(alarms)} alarm(s); history in {db}", flush=True)
             print(f"fleet-demo: dashboard: {url}wheel/{flat_wheel}", flush=True)
             if linger > 0:
-                print(f"fleet-demo: serving the dashboard {linger:g} s more (Ctrl-C to stop)",
-                      flush=True)
+                print(
+                    f"fleet-demo: serving the dashboard {linger:g} s more (Ctrl-C to stop)",
+                    flush=True,
+                )
                 with contextlib.suppress(KeyboardInterrupt):
                     time.sleep(linger)
             if not ok:
-                print("fleet-demo: FAILED: the flat wheel's history lacks a site, or no alarm "
-                      "was raised", file=sys.stderr)
+                print(
+                    "fleet-demo: FAILED: the flat wheel's history lacks a site, or no alarm "
+                    "was raised",
+                    file=sys.stderr,
+                )
             return 0 if ok else 1
     except RuntimeError as exc:
         print(f"fleet-demo: {exc}", file=sys.stderr)

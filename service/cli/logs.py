@@ -24,8 +24,11 @@ ROOT_LOGGER = "railtwin"
 
 
 def _utc(created: float) -> str:
-    return datetime.fromtimestamp(created, tz=UTC).isoformat(timespec="milliseconds").replace(
-        "+00:00", "Z")
+    return (
+        datetime.fromtimestamp(created, tz=UTC)
+        .isoformat(timespec="milliseconds")
+        .replace("+00:00", "Z")
+    )
 
 
 class TextFormatter(logging.Formatter):
@@ -43,8 +46,11 @@ class JsonFormatter(logging.Formatter):
 
     def format(self, record: logging.LogRecord) -> str:
         doc: dict[str, object] = {
-            "time": _utc(record.created), "level": record.levelname, "component": record.name,
-            "message": record.getMessage(), "pid": record.process,
+            "time": _utc(record.created),
+            "level": record.levelname,
+            "component": record.name,
+            "message": record.getMessage(),
+            "pid": record.process,
         }
         if record.exc_info:
             doc["exception"] = self.formatException(record.exc_info)
@@ -52,14 +58,22 @@ class JsonFormatter(logging.Formatter):
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--log-level", choices=LEVELS, default="info",
-                   help="least severe log lines written to stderr (default info)")
-    p.add_argument("--log-json", action="store_true",
-                   help="log one JSON object a line (time, level, component, message, pid)")
+    p.add_argument(
+        "--log-level",
+        choices=LEVELS,
+        default="info",
+        help="least severe log lines written to stderr (default info)",
+    )
+    p.add_argument(
+        "--log-json",
+        action="store_true",
+        help="log one JSON object a line (time, level, component, message, pid)",
+    )
 
 
-def configure(level: LogLevel = "info", json_lines: bool = False,
-              stream: IO[str] | None = None) -> logging.Logger:
+def configure(
+    level: LogLevel = "info", json_lines: bool = False, stream: IO[str] | None = None
+) -> logging.Logger:
     """Send the ``railtwin`` loggers to ``stream`` (stderr) at ``level``; returns the root."""
     handler = logging.StreamHandler(stream if stream is not None else sys.stderr)
     handler.setFormatter(JsonFormatter() if json_lines else TextFormatter())

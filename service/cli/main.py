@@ -184,9 +184,7 @@ def batch_outputs(paths: Sequence[str], out_dir: Path) -> list[Path]:
             )
         out = out_dir / Path(path).with_suffix(".json").name
         if out in seen:
-            raise CommandError(
-                f"{seen[out]} and {path} would both be written to {out}", EXIT_USAGE
-            )
+            raise CommandError(f"{seen[out]} and {path} would both be written to {out}", EXIT_USAGE)
         seen[out] = path
         try:
             same = out.exists() and out.samefile(path)
@@ -377,8 +375,13 @@ def register_schema(subparsers: SubParsers) -> None:
     )
     p.add_argument("name", nargs="?", metavar="NAME", help="model name, e.g. Scenario, Result")
     p.add_argument("--indent", type=int, default=2, help="JSON indentation (default 2)")
-    p.add_argument("--out", type=Path, default=None, metavar="DIR",
-                   help="write every model's schema into DIR (e.g. schemas/json) instead")
+    p.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="write every model's schema into DIR (e.g. schemas/json) instead",
+    )
     p.set_defaults(func=cmd_schema)
 
 
@@ -452,6 +455,7 @@ def cmd_figures(args: argparse.Namespace) -> int:
 
 BUILTIN_COMMANDS = (register_simulate, register_schema, register_figures)
 
+
 def _serve(sp: SubParsers) -> None:
     from service.cli import serve
 
@@ -519,9 +523,17 @@ def _fleet(sp: SubParsers) -> None:
 
 
 SERVICE_COMMANDS: dict[str, Callable[[SubParsers], None]] = {
-    "serve": _serve, "feed": _feed, "feed-measured": _feed_measured,
-    "synthesize": _synthesize, "replay": _replay, "diagnose": _diagnose, "recover": _recover,
-    "demo": _demo, "warm": _warm, "router": _router, "fleet": _fleet,
+    "serve": _serve,
+    "feed": _feed,
+    "feed-measured": _feed_measured,
+    "synthesize": _synthesize,
+    "replay": _replay,
+    "diagnose": _diagnose,
+    "recover": _recover,
+    "demo": _demo,
+    "warm": _warm,
+    "router": _router,
+    "fleet": _fleet,
 }
 """The service's subcommands, by name, each registered by a function that imports its module
 when called: a command line that names one (``railtwin diagnose ...``) imports only that
@@ -569,8 +581,9 @@ def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
         "--debug", action="store_true", help="print the traceback of runtime failures"
     )
     # _Parser is an ArgumentParser: the subcommands' register() take the plain type
-    subparsers = cast(SubParsers, parser.add_subparsers(dest="command", metavar="COMMAND",
-                                                        parser_class=_Parser))
+    subparsers = cast(
+        SubParsers, parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    )
     subparsers.required = True
     for register in BUILTIN_COMMANDS:
         register(subparsers)

@@ -29,9 +29,11 @@ from service.cli.common import (
 
 def register(subparsers: SubParsers) -> None:
     p = subparsers.add_parser(
-        "recover", help="repair MCAP logs cut short by a crash",
+        "recover",
+        help="repair MCAP logs cut short by a crash",
         description=__doc__.split("\n\n")[0] + "\n\n" + __doc__.split("\n\n")[2],
-        epilog=EXIT_CODES_HELP, formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog=EXIT_CODES_HELP,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("logs", nargs="+", type=Path, metavar="LOG.mcap|RUN-inputs.journal")
     p.add_argument("--out", type=Path, required=True, help="the repaired log to write")
@@ -53,6 +55,8 @@ def cmd_recover(args: argparse.Namespace) -> int:
     for d in report.damaged:
         print(f"railtwin recover: {d}", file=sys.stderr)
     extra = f" ({report.from_journal} only in the journal)" if report.from_journal else ""
-    print(f"railtwin recover: {report.messages} messages from {report.files} file(s){extra} "
-          f"-> {args.out}")
+    print(
+        f"railtwin recover: {report.messages} messages from {report.files} file(s){extra} "
+        f"-> {args.out}"
+    )
     return EXIT_OK if report.messages else EXIT_FAILURE

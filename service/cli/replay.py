@@ -24,37 +24,69 @@ from service.wire.zenoh_session import DEFAULT_ENDPOINT, build_config, open_sess
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("logs", type=Path, nargs="+", metavar="LOG.mcap",
-                   help="MCAP log(s) of one run (rotated parts together; cut logs are read "
-                        "up to their last complete chunk)")
-    p.add_argument("--site", default=None, metavar="ID",
-                   help="publish to this site's input keys; required when the log holds the "
-                        "inputs of several sites (then only that site's are replayed), "
-                        "otherwise the log's site")
-    p.add_argument("--include-rejected", action="store_true",
-                   help="also send the inputs that are not valid against their model (the "
-                        "log's rejected inputs), so that the twin answers them with the same "
-                        "errors; default: only valid passages and measurements")
-    p.add_argument("--rate", type=float, default=1.0,
-                   help="time scale: 2 replays twice as fast; 0 sends without waiting (default 1)")
-    p.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
-                   help=f"Zenoh endpoint of the twin (repeatable; default {DEFAULT_ENDPOINT})")
+    p.add_argument(
+        "logs",
+        type=Path,
+        nargs="+",
+        metavar="LOG.mcap",
+        help="MCAP log(s) of one run (rotated parts together; cut logs are read "
+        "up to their last complete chunk)",
+    )
+    p.add_argument(
+        "--site",
+        default=None,
+        metavar="ID",
+        help="publish to this site's input keys; required when the log holds the "
+        "inputs of several sites (then only that site's are replayed), "
+        "otherwise the log's site",
+    )
+    p.add_argument(
+        "--include-rejected",
+        action="store_true",
+        help="also send the inputs that are not valid against their model (the "
+        "log's rejected inputs), so that the twin answers them with the same "
+        "errors; default: only valid passages and measurements",
+    )
+    p.add_argument(
+        "--rate",
+        type=float,
+        default=1.0,
+        help="time scale: 2 replays twice as fast; 0 sends without waiting (default 1)",
+    )
+    p.add_argument(
+        "--connect",
+        action="append",
+        default=[],
+        metavar="ENDPOINT",
+        help=f"Zenoh endpoint of the twin (repeatable; default {DEFAULT_ENDPOINT})",
+    )
     p.add_argument("--listen", action="append", default=[], metavar="ENDPOINT")
-    p.add_argument("--zenoh-config", type=Path, default=None, metavar="FILE",
-                   help="Zenoh JSON5 config (e.g. deploy/zenoh/site-publisher.json5 for TLS)")
-    p.add_argument("--wait", type=float, default=10.0,
-                   help="s to wait for a subscriber before replaying (default 10)")
-    p.add_argument("--dry-run", action="store_true",
-                   help="say what would be sent, and send nothing")
+    p.add_argument(
+        "--zenoh-config",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="Zenoh JSON5 config (e.g. deploy/zenoh/site-publisher.json5 for TLS)",
+    )
+    p.add_argument(
+        "--wait",
+        type=float,
+        default=10.0,
+        help="s to wait for a subscriber before replaying (default 10)",
+    )
+    p.add_argument(
+        "--dry-run", action="store_true", help="say what would be sent, and send nothing"
+    )
 
 
 def register(subparsers: SubParsers) -> argparse.ArgumentParser:
     """Add ``replay`` to the ``railtwin`` CLI's subparsers."""
     p: argparse.ArgumentParser = subparsers.add_parser(
-        "replay", help="republish the inputs of an MCAP log onto Zenoh",
+        "replay",
+        help="republish the inputs of an MCAP log onto Zenoh",
         description="Republish the passages and measurements a twin received (from its MCAP "
-                    "log) in their original timing to one site's input keys, so that a fresh "
-                    "twin reproduces the logged outputs.",
+        "log) in their original timing to one site's input keys, so that a fresh "
+        "twin reproduces the logged outputs.",
     )
     add_arguments(p)
     p.set_defaults(func=run)
@@ -64,14 +96,21 @@ def register(subparsers: SubParsers) -> argparse.ArgumentParser:
 def describe(plan: ReplayPlan, include_rejected: bool) -> list[str]:
     """What the replay sends and leaves out, a line each."""
     logged = ", ".join(plan.logged_sites) or "none"
-    lines = [f"site {plan.site_id} (inputs of site {logged} in the log): "
-             f"{len(plan.inputs)} inputs to send: {plan.count('passage')} passages, "
-             f"{plan.count('measured')} measurements"
-             + (f", {plan.count('passage', False) + plan.count('measured', False)} rejected"
-                if include_rejected else "")]
+    lines = [
+        f"site {plan.site_id} (inputs of site {logged} in the log): "
+        f"{len(plan.inputs)} inputs to send: {plan.count('passage')} passages, "
+        f"{plan.count('measured')} measurements"
+        + (
+            f", {plan.count('passage', False) + plan.count('measured', False)} rejected"
+            if include_rejected
+            else ""
+        )
+    ]
     if plan.rejected_skipped:
-        lines.append(f"{plan.rejected_skipped} rejected inputs not sent "
-                     "(use --include-rejected to send them)")
+        lines.append(
+            f"{plan.rejected_skipped} rejected inputs not sent "
+            "(use --include-rejected to send them)"
+        )
     if plan.truncated:
         lines.append(f"{plan.truncated} rejected inputs not sent: logged cut (too large)")
     if plan.damaged:
@@ -80,8 +119,10 @@ def describe(plan: ReplayPlan, include_rejected: bool) -> list[str]:
         lines.append(f"{plan.other_sites} inputs of other sites skipped")
     skipped = sum(plan.skipped_channels.values())
     if skipped:
-        lines.append(f"{skipped} messages on {len(plan.skipped_channels)} other channels "
-                     "skipped (outputs are never replayed)")
+        lines.append(
+            f"{skipped} messages on {len(plan.skipped_channels)} other channels "
+            "skipped (outputs are never replayed)"
+        )
     unknown = plan.unknown_channels()
     if unknown:
         shown = ", ".join(f"{t!r} ({plan.skipped_channels[t]})" for t in unknown[:10])
@@ -112,8 +153,11 @@ def run(args: argparse.Namespace) -> int:
     cfg = build_config(listen=args.listen, connect=connect, config_file=args.zenoh_config)
     with open_session(cfg) as session:
         n = replay(session, plan, rate=args.rate, match_timeout=args.wait)
-    print(f"railtwin replay: published {n} inputs from {len(args.logs)} file(s) to "
-          f"railtwin/{plan.site_id}/passage and .../measured", flush=True)
+    print(
+        f"railtwin replay: published {n} inputs from {len(args.logs)} file(s) to "
+        f"railtwin/{plan.site_id}/passage and .../measured",
+        flush=True,
+    )
     return 0
 
 

@@ -28,19 +28,34 @@ from service.wire.zenoh_session import DEFAULT_ENDPOINT, build_config, open_sess
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--listen", action="append", default=[], metavar="ENDPOINT",
-                   help=f"endpoint to listen on (repeatable; default {DEFAULT_ENDPOINT} unless "
-                        "--zenoh-config is given), e.g. tcp/0.0.0.0:7447 or tls/host:7447")
-    p.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
-                   help="another router to link to (repeatable): routers of other regions")
-    p.add_argument("--zenoh-config", type=Path, default=None, metavar="FILE",
-                   help="Zenoh JSON5 config (TLS, access control); --listen/--connect apply "
-                        "on top of it")
+    p.add_argument(
+        "--listen",
+        action="append",
+        default=[],
+        metavar="ENDPOINT",
+        help=f"endpoint to listen on (repeatable; default {DEFAULT_ENDPOINT} unless "
+        "--zenoh-config is given), e.g. tcp/0.0.0.0:7447 or tls/host:7447",
+    )
+    p.add_argument(
+        "--connect",
+        action="append",
+        default=[],
+        metavar="ENDPOINT",
+        help="another router to link to (repeatable): routers of other regions",
+    )
+    p.add_argument(
+        "--zenoh-config",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="Zenoh JSON5 config (TLS, access control); --listen/--connect apply on top of it",
+    )
 
 
 def register(subparsers: Any) -> None:
     p = subparsers.add_parser(
-        "router", help="run a Zenoh router that sites, the fleet and clients join",
+        "router",
+        help="run a Zenoh router that sites, the fleet and clients join",
         description=__doc__.split("\n\n")[0] if __doc__ else None,
     )
     add_arguments(p)
@@ -50,8 +65,9 @@ def register(subparsers: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     listen = args.listen or ([] if args.zenoh_config else [DEFAULT_ENDPOINT])
     try:
-        cfg = build_config(listen=listen, connect=args.connect, config_file=args.zenoh_config,
-                           mode="router")
+        cfg = build_config(
+            listen=listen, connect=args.connect, config_file=args.zenoh_config, mode="router"
+        )
     except (zenoh.ZError, OSError, ValueError) as exc:
         print(f"railtwin router: invalid configuration: {exc}", file=sys.stderr)
         return 2
@@ -65,14 +81,16 @@ def run(args: argparse.Namespace) -> int:
         try:
             session = open_session(cfg)
         except zenoh.ZError as exc:
-            print(f"railtwin router: cannot start: {' '.join(str(exc).split())}",
-                  file=sys.stderr, flush=True)
+            print(
+                f"railtwin router: cannot start: {' '.join(str(exc).split())}",
+                file=sys.stderr,
+                flush=True,
+            )
             return 1
         with session:
             where = ", ".join(listen) if listen else "(from config)"
             links = f", linked to {', '.join(args.connect)}" if args.connect else ""
-            print(f"railtwin router: routing on {where}{links} (zid {session.zid()})",
-                  flush=True)
+            print(f"railtwin router: routing on {where}{links} (zid {session.zid()})", flush=True)
             print("railtwin router: ready", flush=True)
             while not stop.wait(0.2):
                 pass

@@ -43,9 +43,15 @@ class ServiceProcess:
         echo: bool = False,
     ) -> None:
         self.args = [
-            sys.executable, "-m", "service.cli.serve", "--site", str(site),
+            sys.executable,
+            "-m",
+            "service.cli.serve",
+            "--site",
+            str(site),
             *(("--listen", listen) if listen is not None else ()),  # None: --connect in extra_args
-            "--recordings", str(recordings), *extra_args,
+            "--recordings",
+            str(recordings),
+            *extra_args,
         ]
         self.start_timeout = start_timeout
         self.echo = echo
@@ -58,14 +64,19 @@ class ServiceProcess:
         self.start()
         return self
 
-    def __exit__(self, et: type[BaseException] | None, e: BaseException | None,
-                 tb: TracebackType | None) -> None:
+    def __exit__(
+        self, et: type[BaseException] | None, e: BaseException | None, tb: TracebackType | None
+    ) -> None:
         self.stop()
 
     def start(self) -> None:
         env = {**os.environ, "PYTHONUNBUFFERED": "1"}
         self.proc = subprocess.Popen(
-            self.args, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
+            self.args,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            env=env,
             cwd=Path(__file__).resolve().parents[2],
         )
         threading.Thread(target=self._pump, daemon=True).start()

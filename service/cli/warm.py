@@ -78,9 +78,15 @@ def _warm_integrator() -> None:
     from sim_core.passage import Foundation, PassageSpec, simulate_passage
 
     d = derive(Material(2.14e11, 0.3), radius=0.46, load=60e3, mass=600.0)
-    spec = PassageSpec(mass=600.0, load=60e3, speed=30.0, duration=0.002, sample_rate=1e4,
-                       contact=ContactModel(ContactLaw.HERTZ, d.contact_coefficient),
-                       foundation=Foundation.compliant(150.0, 2e8, 7e4))
+    spec = PassageSpec(
+        mass=600.0,
+        load=60e3,
+        speed=30.0,
+        duration=0.002,
+        sample_rate=1e4,
+        contact=ContactModel(ContactLaw.HERTZ, d.contact_coefficient),
+        foundation=Foundation.compliant(150.0, 2e8, 7e4),
+    )
     out = simulate_passage(flat_constraint(), spec)
     if not np.isfinite(out.force).all():
         raise RuntimeError("the warm-up passage gave a non-finite force")
@@ -100,12 +106,37 @@ def _warm_integrator_kernels() -> None:
     from sim_core.integrate_types import Params, Work, table_of
 
     tab = table_of(flat_constraint())
-    par = Params.build(law=0, c=1e11, f_y=0.0, d_y=0.0, theta=0.0, hyst=0.0, mass=600.0,
-                       load=6e4, speed=30.0, compliant=False, f_mass=1.0, f_stiff=0.0,
-                       f_damp=0.0, rtol=1e-8, atol_y=1e-12, atol_v=1e-9, hmax_contact=1e-4,
-                       c2max=0.0, track_dents=False, dent_dx=1e-4)
-    w = Work(np.zeros((13, 4)), np.zeros(13), np.zeros(4), np.zeros(4), np.zeros((2, 8)),
-             np.zeros(128), np.zeros(128))
+    par = Params.build(
+        law=0,
+        c=1e11,
+        f_y=0.0,
+        d_y=0.0,
+        theta=0.0,
+        hyst=0.0,
+        mass=600.0,
+        load=6e4,
+        speed=30.0,
+        compliant=False,
+        f_mass=1.0,
+        f_stiff=0.0,
+        f_damp=0.0,
+        rtol=1e-8,
+        atol_y=1e-12,
+        atol_v=1e-9,
+        hmax_contact=1e-4,
+        c2max=0.0,
+        track_dents=False,
+        dent_dx=1e-4,
+    )
+    w = Work(
+        np.zeros((13, 4)),
+        np.zeros(13),
+        np.zeros(4),
+        np.zeros(4),
+        np.zeros((2, 8)),
+        np.zeros(128),
+        np.zeros(128),
+    )
     y, coef, rows = np.zeros(4), w.coef, np.zeros((8, 3))
     i, f, b = 0, 0.0, False
     calls: list[tuple[Any, tuple[Any, ...]]] = [
@@ -132,12 +163,14 @@ def warm(site_file: Path, jobs: int, out: Any = sys.stdout) -> float:
                 print(f"railtwin warm: {g} compiled in {fut.result():.1f} s", file=out, flush=True)
     else:
         for g, steps in GROUPS.items():
-            print(f"railtwin warm: {g} compiled in {warm_group(steps):.1f} s", file=out,
-                  flush=True)
+            print(f"railtwin warm: {g} compiled in {warm_group(steps):.1f} s", file=out, flush=True)
     t0 = time.perf_counter()
     _warm_site(site_file)
-    print(f"railtwin warm: site {site_file.name} warmed up in {time.perf_counter() - t0:.1f} s",
-          file=out, flush=True)
+    print(
+        f"railtwin warm: site {site_file.name} warmed up in {time.perf_counter() - t0:.1f} s",
+        file=out,
+        flush=True,
+    )
     return time.perf_counter() - start
 
 
@@ -159,10 +192,18 @@ def _default_jobs() -> int:
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--site", type=Path, default=DEFAULT_SITE,
-                   help="site file whose warm-up runs last (default: examples/site.toml)")
-    p.add_argument("--jobs", type=int, default=_default_jobs(),
-                   help=f"processes compiling at once (default: {_default_jobs()})")
+    p.add_argument(
+        "--site",
+        type=Path,
+        default=DEFAULT_SITE,
+        help="site file whose warm-up runs last (default: examples/site.toml)",
+    )
+    p.add_argument(
+        "--jobs",
+        type=int,
+        default=_default_jobs(),
+        help=f"processes compiling at once (default: {_default_jobs()})",
+    )
 
 
 def handler(args: argparse.Namespace) -> int:
@@ -173,16 +214,22 @@ def handler(args: argparse.Namespace) -> int:
         print(f"railtwin warm: no site file {args.site}", file=sys.stderr)
         return 2
     cache = os.environ.get("NUMBA_CACHE_DIR", "numba's default (__pycache__ beside the sources)")
-    print(f"railtwin warm: compiling the physics into {cache} ({args.jobs} process"
-          f"{'es' if args.jobs > 1 else ''})", flush=True)
+    print(
+        f"railtwin warm: compiling the physics into {cache} ({args.jobs} process"
+        f"{'es' if args.jobs > 1 else ''})",
+        flush=True,
+    )
     total = warm(args.site, args.jobs)
     print(f"railtwin warm: done in {total:.1f} s", flush=True)
     return 0
 
 
 def register(subparsers: Any) -> None:
-    p = subparsers.add_parser("warm", help="compile the physics into numba's cache (parallel)",
-                              description=__doc__.split("\n")[0])
+    p = subparsers.add_parser(
+        "warm",
+        help="compile the physics into numba's cache (parallel)",
+        description=__doc__.split("\n")[0],
+    )
     add_arguments(p)
     p.set_defaults(func=handler)
 

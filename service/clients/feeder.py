@@ -132,8 +132,10 @@ def wait_matching(publisher: zenoh.Publisher, timeout: float) -> bool:
 
 def declare_passage_publisher(session: zenoh.Session, keys: SiteKeys) -> zenoh.Publisher:
     return session.declare_publisher(
-        keys.passage, encoding=json_encoding(WheelPassage),
-        congestion_control=zenoh.CongestionControl.BLOCK, express=True,
+        keys.passage,
+        encoding=json_encoding(WheelPassage),
+        congestion_control=zenoh.CongestionControl.BLOCK,
+        express=True,
     )
 
 
@@ -185,17 +187,24 @@ def describe(r: PassageResult) -> str:
     s = r.summary
     flag = "  <-- contact lost" if s.contact_losses else ""
     dent = f"{s.max_dent * 1e6:7.2f} µm" if s.max_dent > 0 else "      -   "
-    return (f"{r.passage_id:<16} axle {r.axle_index:>2}  peak {s.peak_force / 1e3:7.1f} kN  "
-            f"losses {s.contact_losses:>2}  max δ {s.max_indentation * 1e6:6.1f} µm  "
-            f"dent {dent}{flag}")
+    return (
+        f"{r.passage_id:<16} axle {r.axle_index:>2}  peak {s.peak_force / 1e3:7.1f} kN  "
+        f"losses {s.contact_losses:>2}  max δ {s.max_indentation * 1e6:6.1f} µm  "
+        f"dent {dent}{flag}"
+    )
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The options of ``railtwin feed``."""
     p.add_argument("--train", type=Path, default=Path("recordings/samples/train_160kmh.json"))
     p.add_argument("--site", default="demo", help="site id of the running service")
-    p.add_argument("--connect", action="append", default=[], metavar="ENDPOINT",
-                   help=f"endpoint of the service (repeatable; default {DEFAULT_ENDPOINT})")
+    p.add_argument(
+        "--connect",
+        action="append",
+        default=[],
+        metavar="ENDPOINT",
+        help=f"endpoint of the service (repeatable; default {DEFAULT_ENDPOINT})",
+    )
     p.add_argument("--zenoh-config", type=Path, default=None)
     p.add_argument("--flood", action="store_true", help="send all passages at once")
     p.add_argument("--timeout", type=float, default=60.0, help="s to wait for all results")
@@ -227,18 +236,25 @@ def run(args: argparse.Namespace) -> int:
             print(f"feeder: no service subscribed to {keys.passage} at {connect}", file=sys.stderr)
             sub.undeclare()
             return 1
-        print(f"feeder: streaming {len(train.wheels)} wheels of train {train.train_id} "
-              f"to {keys.passage}", flush=True)
-        ids = send_train(pub, collector, [(w.offset, w.passage) for w in train.wheels],
-                         flood=args.flood)
+        print(
+            f"feeder: streaming {len(train.wheels)} wheels of train {train.train_id} "
+            f"to {keys.passage}",
+            flush=True,
+        )
+        ids = send_train(
+            pub, collector, [(w.offset, w.passage) for w in train.wheels], flood=args.flood
+        )
         ok = collector.wait(ids, args.timeout)
         health = query_health(session)
         sub.undeclare()
         pub.undeclare()
     results = [o.result for o in collector.outcomes.values() if o.result is not None]
     lat = sorted(o.latency for o in collector.outcomes.values() if o.latency is not None)
-    print(f"feeder: {len(results)}/{len(ids)} results, {len(collector.errors)} errors"
-          + (f", latency median {lat[len(lat) // 2] * 1e3:.1f} ms" if lat else ""), flush=True)
+    print(
+        f"feeder: {len(results)}/{len(ids)} results, {len(collector.errors)} errors"
+        + (f", latency median {lat[len(lat) // 2] * 1e3:.1f} ms" if lat else ""),
+        flush=True,
+    )
     for h in health:
         if h.site_id == args.site:
             print(json.dumps({"mcap": h.mcap_path, "rrd": h.rrd_path}), flush=True)

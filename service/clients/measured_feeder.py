@@ -38,15 +38,25 @@ DEFAULT_AXLES = (0, 5, 13, 20)
 
 
 def describe(d: Diagnosis, latency: float) -> str:
-    flat = "no flat" if d.flat is None else (
-        f"{d.flat.kind} {d.flat.length * 1e3:.1f} mm "
-        f"[{d.flat.length_low * 1e3:.1f}-{d.flat.length_high * 1e3:.1f}]")
-    line = "" if d.peak_force_at_line_speed is None else (
-        f", {d.peak_force_at_line_speed / 1e3:.0f} kN at line speed")
+    flat = (
+        "no flat"
+        if d.flat is None
+        else (
+            f"{d.flat.kind} {d.flat.length * 1e3:.1f} mm "
+            f"[{d.flat.length_low * 1e3:.1f}-{d.flat.length_high * 1e3:.1f}]"
+        )
+    )
+    line = (
+        ""
+        if d.peak_force_at_line_speed is None
+        else (f", {d.peak_force_at_line_speed / 1e3:.0f} kN at line speed")
+    )
     wheel = f" (wheel {d.wheel.id})" if d.wheel is not None else ""
-    return (f"diagnosis {d.passage_id}{wheel}: {d.verdict.upper():7s} {flat}; measured peak "
-            f"{d.peak_force_measured / 1e3:.0f} kN{line}; verdict {latency * 1e3:.0f} ms "
-            f"after the measurement")
+    return (
+        f"diagnosis {d.passage_id}{wheel}: {d.verdict.upper():7s} {flat}; measured peak "
+        f"{d.peak_force_measured / 1e3:.0f} kN{line}; verdict {latency * 1e3:.0f} ms "
+        f"after the measurement"
+    )
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -58,13 +68,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--timeout", type=float, default=60.0)
     p.add_argument("--save", type=Path, default=None, help="only generate, into this file")
     p.add_argument("--load", type=Path, default=None, help="publish measurements saved before")
-    p.add_argument("--with-train", action="store_true",
-                   help="publish each when its wheel leaves the site (train timing)")
+    p.add_argument(
+        "--with-train",
+        action="store_true",
+        help="publish each when its wheel leaves the site (train timing)",
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="railtwin feed-measured",
-                                description=__doc__.split("\n")[0])
+    p = argparse.ArgumentParser(prog="railtwin feed-measured", description=__doc__.split("\n")[0])
     add_arguments(p)
     return run(p.parse_args(argv))
 
@@ -74,24 +86,34 @@ def run(a: argparse.Namespace) -> int:
     site = load_site(a.site_file)
     train = load_train(a.train)
     keys = SiteKeys(site.site_id)
-    offsets = {w.passage.passage_id: w.offset + site.length / w.passage.speed
-               for w in train.wheels}
+    offsets = {w.passage.passage_id: w.offset + site.length / w.passage.speed for w in train.wheels}
     payloads: list[MeasuredPassage] = []
     if a.load is not None:
-        payloads = [MeasuredPassage.model_validate(d)
-                    for d in json.loads(a.load.read_text(encoding="utf-8"))]
+        payloads = [
+            MeasuredPassage.model_validate(d)
+            for d in json.loads(a.load.read_text(encoding="utf-8"))
+        ]
     else:
         from service.physics.diagnosis import Diagnoser  # the physics, only when it is used
 
         diagnoser = Diagnoser(site)
         wheels = [w.passage for w in train.wheels if w.passage.axle_index in set(a.axles)]
-        print(f"measured: generating the site's measurement of {len(wheels)} wheels "
-              f"(axles {', '.join(str(w.axle_index) for w in wheels)})", flush=True)
+        print(
+            f"measured: generating the site's measurement of {len(wheels)} wheels "
+            f"(axles {', '.join(str(w.axle_index) for w in wheels)})",
+            flush=True,
+        )
         for i, w in enumerate(wheels):
             m = measure(site, w, passage_tread(w), seed=1000 + i, diagnoser=diagnoser)
-            payloads.append(MeasuredPassage(passage_id=w.passage_id, sample_rate=m.sample_rate,
-                                            t_start=m.t_start, force=m.force.tolist(),
-                                            speed=w.speed))
+            payloads.append(
+                MeasuredPassage(
+                    passage_id=w.passage_id,
+                    sample_rate=m.sample_rate,
+                    t_start=m.t_start,
+                    force=m.force.tolist(),
+                    speed=w.speed,
+                )
+            )
     if a.save is not None:
         a.save.write_text(json.dumps([m.model_dump() for m in payloads]), encoding="utf-8")
         return 0
@@ -120,8 +142,11 @@ def run(a: argparse.Namespace) -> int:
     connect = a.connect or [DEFAULT_ENDPOINT]
     with open_session(build_config(connect=connect)) as session:
         sub = session.declare_subscriber(keys.all_outputs, on_output)
-        pub = session.declare_publisher(keys.measured, encoding=json_encoding(MeasuredPassage),
-                                        congestion_control=zenoh.CongestionControl.BLOCK)
+        pub = session.declare_publisher(
+            keys.measured,
+            encoding=json_encoding(MeasuredPassage),
+            congestion_control=zenoh.CongestionControl.BLOCK,
+        )
         wait_matching(pub, 10.0)
         start = time.monotonic()
         for mp in sorted(payloads, key=lambda m: offsets.get(m.passage_id, 0.0)):
@@ -137,8 +162,10 @@ def run(a: argparse.Namespace) -> int:
         ok = done.wait(a.timeout)
         sub.undeclare()
     if not ok:
-        print(f"measured: {len(payloads) - len(got)} diagnoses missing after {a.timeout} s",
-              file=sys.stderr)
+        print(
+            f"measured: {len(payloads) - len(got)} diagnoses missing after {a.timeout} s",
+            file=sys.stderr,
+        )
         return 1
     return 0
 

@@ -47,25 +47,37 @@ def read_measured_csv(path: Path, passage_id: str, speed: float | None = None) -
         try:
             tv, fv = float(parts[0]), float(parts[1])
         except ValueError:
-            raise MeasuredFileError(f"{path}: line {no}: not numbers: {line.strip()[:60]!r}") from None
+            raise MeasuredFileError(
+                f"{path}: line {no}: not numbers: {line.strip()[:60]!r}"
+            ) from None
         if not (math.isfinite(tv) and math.isfinite(fv)):
-            raise MeasuredFileError(f"{path}: line {no}: values must be finite, got {line.strip()!r}")
+            raise MeasuredFileError(
+                f"{path}: line {no}: values must be finite, got {line.strip()!r}"
+            )
         t.append(tv)
         f.append(fv)
         if len(t) > MAX_MEASURED_SAMPLES:
             raise MeasuredFileError(f"{path}: more than {MAX_MEASURED_SAMPLES} samples")
     if len(t) < MIN_MEASURED_SAMPLES:
         raise MeasuredFileError(
-            f"{path}: force: {len(t)} samples, at least {MIN_MEASURED_SAMPLES} are needed")
+            f"{path}: force: {len(t)} samples, at least {MIN_MEASURED_SAMPLES} are needed"
+        )
     ta = np.asarray(t)
     dt = np.diff(ta)
     step = float(np.median(dt))
     if not step > 0 or np.max(np.abs(dt - step)) > SPACING_TOLERANCE * step:
-        raise MeasuredFileError(f"{path}: t_s must be increasing and uniformly spaced "
-                                f"(sample rate): spacing varies from {dt.min():g} to {dt.max():g} s")
+        raise MeasuredFileError(
+            f"{path}: t_s must be increasing and uniformly spaced "
+            f"(sample rate): spacing varies from {dt.min():g} to {dt.max():g} s"
+        )
     try:
-        return MeasuredPassage(passage_id=passage_id, sample_rate=1.0 / step,
-                               t_start=float(ta[0]), force=f, speed=speed)
+        return MeasuredPassage(
+            passage_id=passage_id,
+            sample_rate=1.0 / step,
+            t_start=float(ta[0]),
+            force=f,
+            speed=speed,
+        )
     except ValidationError as exc:
         e = exc.errors()[0]
         raise MeasuredFileError(f"{path}: {'.'.join(map(str, e['loc']))}: {e['msg']}") from None

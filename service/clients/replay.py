@@ -105,9 +105,11 @@ class ReplayPlan:
         out = []
         for topic in self.skipped_channels:
             parts = topic.split("/")
-            own_output = (len(parts) == 3 and parts[0] == "railtwin"
-                          and parts[2] in ("force", "indentation", "result", "diagnosis",
-                                           "error"))
+            own_output = (
+                len(parts) == 3
+                and parts[0] == "railtwin"
+                and parts[2] in ("force", "indentation", "result", "diagnosis", "error")
+            )
             if not own_output:
                 out.append(topic)
         return sorted(out)
@@ -153,8 +155,10 @@ def plan_replay(
     given and the log holds the inputs of several sites or of none.
     """
     if site_id is not None and limits.valid_id(site_id) is None:
-        raise ReplayError(f"--site {site_id!r} is not a site id ([A-Za-z0-9_.-], 1 to "
-                          f"{limits.MAX_ID_LENGTH} characters)")
+        raise ReplayError(
+            f"--site {site_id!r} is not a site id ([A-Za-z0-9_.-], 1 to "
+            f"{limits.MAX_ID_LENGTH} characters)"
+        )
     found: list[tuple[LoggedMessage, str, InputKind, bool]] = []
     skipped: Counter[str] = Counter()
     for m in messages:
@@ -167,13 +171,17 @@ def plan_replay(
     if site_id is not None:
         source = site_id if len(sites) > 1 else (sites[0] if sites else site_id)
         if len(sites) > 1 and site_id not in sites:
-            raise ReplayError(f"the log holds the inputs of sites {', '.join(sites)}: "
-                              "--site must name one of them")
+            raise ReplayError(
+                f"the log holds the inputs of sites {', '.join(sites)}: "
+                "--site must name one of them"
+            )
     elif len(sites) == 1:
         source = site_id = sites[0]
     elif sites:
-        raise ReplayError(f"the log holds the inputs of several sites ({', '.join(sites)}): "
-                          "say which one with --site")
+        raise ReplayError(
+            f"the log holds the inputs of several sites ({', '.join(sites)}): "
+            "say which one with --site"
+        )
     else:
         raise ReplayError("the log holds no site's inputs: give --site to replay it anyway")
     plan = ReplayPlan(site_id=site_id, logged_sites=sites, skipped_channels=skipped)
@@ -201,8 +209,7 @@ def plan_replay(
     return plan
 
 
-def read_logs(paths: Sequence[Path], report: RecoveryReport | None = None
-              ) -> list[LoggedMessage]:
+def read_logs(paths: Sequence[Path], report: RecoveryReport | None = None) -> list[LoggedMessage]:
     """Every complete message of ``paths`` (finished or cut logs), in log-time order; where a
     file is cut is added to ``report.damaged``."""
     msgs: list[LoggedMessage] = []
@@ -231,7 +238,9 @@ def replay(
     for kind in sorted({i.kind for i in plan.inputs}):
         encoding = zenoh.Encoding.APPLICATION_JSON.with_schema(encoding_schema(MODELS[kind]))
         pub = session.declare_publisher(
-            key_of[kind], encoding=encoding, congestion_control=zenoh.CongestionControl.BLOCK,
+            key_of[kind],
+            encoding=encoding,
+            congestion_control=zenoh.CongestionControl.BLOCK,
             express=True,
         )
         wait_matching(pub, match_timeout)

@@ -27,9 +27,18 @@ if TYPE_CHECKING:  # the physics (numba, scipy) is imported when used: ``railtwi
     from sim_core.diagnosis.synthetic import SyntheticMeasurement
 
 
-def measure(site: SiteConfig, passage: WheelPassage, tread: Tread | None, *, seed: int,
-            noise: float = 0.03, roughness: float = 3e-6, damping_ratio: float | None = 0.15,
-            speed_error: float = 0.0, diagnoser: Diagnoser | None = None) -> SyntheticMeasurement:
+def measure(
+    site: SiteConfig,
+    passage: WheelPassage,
+    tread: Tread | None,
+    *,
+    seed: int,
+    noise: float = 0.03,
+    roughness: float = 3e-6,
+    damping_ratio: float | None = 0.15,
+    speed_error: float = 0.0,
+    diagnoser: Diagnoser | None = None,
+) -> SyntheticMeasurement:
     """What the site would measure of ``passage`` with ``tread`` (None: round)."""
     from service.physics.diagnosis import Diagnoser
     from sim_core.diagnosis.forward import damping_for_ratio
@@ -43,7 +52,13 @@ def measure(site: SiteConfig, passage: WheelPassage, tread: Tread | None, *, see
         damping = damping_for_ratio(f, damping_ratio)
     rate = site.diagnosis.sample_rate or 10_000.0
     return synthetic_measurement(
-        wheel, passage.speed, tread, d.physics.base_rail, site.length, rate, d.sensor,
+        wheel,
+        passage.speed,
+        tread,
+        d.physics.base_rail,
+        site.length,
+        rate,
+        d.sensor,
         Perturbations(noise, roughness, damping, speed_error, seed),
     )
 
@@ -62,8 +77,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     """The options of ``railtwin synthesize``."""
     p.add_argument("--site", type=Path, required=True)
     p.add_argument("--passage", type=Path, required=True)
-    p.add_argument("--flat", choices=("flat", "rounded_flat"), default=None,
-                   help="put this flat on the wheel (default: the passage's own outline)")
+    p.add_argument(
+        "--flat",
+        choices=("flat", "rounded_flat"),
+        default=None,
+        help="put this flat on the wheel (default: the passage's own outline)",
+    )
     p.add_argument("--length", type=float, default=0.05, help="flat length, m")
     p.add_argument("--phase", type=float, default=1.0, help="flat position φ0, rad")
     p.add_argument("--seed", type=int, default=1)
@@ -94,8 +113,16 @@ def run(a: argparse.Namespace) -> int:
         tread = Flat.ideal(R, a.length, a.phase)
     elif a.flat == "rounded_flat":
         tread = Flat.rounded(R, a.length, None, a.phase)
-    m = measure(site, passage, tread, seed=a.seed, noise=a.noise, roughness=a.roughness,
-                damping_ratio=a.damping_ratio, speed_error=a.speed_error)
+    m = measure(
+        site,
+        passage,
+        tread,
+        seed=a.seed,
+        noise=a.noise,
+        roughness=a.roughness,
+        damping_ratio=a.damping_ratio,
+        speed_error=a.speed_error,
+    )
     rows = np.column_stack([m.t, m.force])
     np.savetxt(a.out, rows, delimiter=",", header="t_s,force_N", comments="", fmt="%.9g")
     print(f"wrote {a.out}: {m.force.size} samples, true peak {m.true_peak_force / 1e3:.1f} kN")

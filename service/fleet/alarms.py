@@ -42,7 +42,10 @@ DEFAULT_HORIZON_DAYS = 30.0
 MAX_EVIDENCE = 50
 
 _ESCALATION_SEVERITY: dict[str, Severity] = {
-    "watch": "info", "inspect": "warning", "remove": "critical"}
+    "watch": "info",
+    "inspect": "warning",
+    "remove": "critical",
+}
 _FORECAST_SEVERITY: dict[str, Severity] = {"inspect": "info", "remove": "warning"}
 
 
@@ -71,7 +74,8 @@ class FleetAlarm(BaseModel):
     raised_at: float = Field(description="when the fleet raised it, UNIX s")
     episode: int
     forecast: dict[str, Any] | None = Field(
-        default=None, description="forecast alarms: the crossing (at, earliest, latest)")
+        default=None, description="forecast alarms: the crossing (at, earliest, latest)"
+    )
 
 
 @dataclass(frozen=True)
@@ -86,8 +90,9 @@ def _day(t: float) -> str:
     return time.strftime("%Y-%m-%d", time.gmtime(t))
 
 
-def decide(wheel: WheelRow, history: Sequence[Entry], limits: FleetLimits,
-           horizon: float, now: float) -> Decision:
+def decide(
+    wheel: WheelRow, history: Sequence[Entry], limits: FleetLimits, horizon: float, now: float
+) -> Decision:
     """The alarms the wheel's state calls for (before de-duplication by the store)."""
     if not history:
         return Decision([], wheel.alarmed_level, wheel.episode, False)
@@ -99,27 +104,50 @@ def decide(wheel: WheelRow, history: Sequence[Entry], limits: FleetLimits,
     ref = {"vehicle_id": wheel.vehicle_id, "wheelset": wheel.wheelset, "side": wheel.side}
     out: list[FleetAlarm] = []
 
-    def alarm(kind: AlarmKind, lv: str, severity: Severity, reason: str,
-              evidence: list[str], forecast: dict[str, Any] | None = None) -> None:
-        out.append(FleetAlarm(
-            alarm_id=f"{wheel.wheel_id}:{kind}:{lv}:{episode}", wheel_id=wheel.wheel_id,
-            wheel=AlarmWheel.model_validate(ref), kind=kind, level=lv,  # type: ignore[arg-type]
-            severity=severity, reason=reason, evidence=evidence[-MAX_EVIDENCE:],
-            data_time=latest.timestamp, raised_at=now, episode=episode, forecast=forecast))
+    def alarm(
+        kind: AlarmKind,
+        lv: str,
+        severity: Severity,
+        reason: str,
+        evidence: list[str],
+        forecast: dict[str, Any] | None = None,
+    ) -> None:
+        out.append(
+            FleetAlarm(
+                alarm_id=f"{wheel.wheel_id}:{kind}:{lv}:{episode}",
+                wheel_id=wheel.wheel_id,
+                wheel=AlarmWheel.model_validate(ref),
+                kind=kind,
+                level=lv,  # type: ignore[arg-type]
+                severity=severity,
+                reason=reason,
+                evidence=evidence[-MAX_EVIDENCE:],
+                data_time=latest.timestamp,
+                raised_at=now,
+                episode=episode,
+                forecast=forecast,
+            )
+        )
 
     if level > alarmed:
         name = LEVELS[level]
         ev = [e.diagnosis_id for e in history if level_index(e.verdict) >= level]
         why = "; ".join(_reasons(latest)) or name
-        alarm("verdict_escalated", name, _ESCALATION_SEVERITY[name],
-              f"verdict escalated from {LEVELS[alarmed]} to {name} at {latest.site_id} on "
-              f"{_day(latest.timestamp)}: {why}", ev)
+        alarm(
+            "verdict_escalated",
+            name,
+            _ESCALATION_SEVERITY[name],
+            f"verdict escalated from {LEVELS[alarmed]} to {name} at {latest.site_id} on "
+            f"{_day(latest.timestamp)}: {why}",
+            ev,
+        )
         alarmed = level
     fit = trend_entries(history)
-    for kind, trend, limit_of, unit, scale in (
+    forecasts: tuple[tuple[AlarmKind, Any, Any, str, float], ...] = (
         ("forecast_flat_length", length_trend(fit), limits.length, "mm", 1e3),
         ("forecast_peak_force", force_trend(fit), limits.force, "kN", 1e-3),
-    ):
+    )
+    for kind, trend, limit_of, unit, scale in forecasts:
         if trend is None or not trend.growing:
             continue
         for lv in FORECAST_LEVELS:
@@ -131,14 +159,20 @@ def decide(wheel: WheelRow, history: Sequence[Entry], limits: FleetLimits,
             span = ""
             if c.earliest is not None:
                 span = f" (95 % from {_day(c.earliest)}" + (
-                    f" to {_day(c.latest)})" if c.latest is not None else " on)")
+                    f" to {_day(c.latest)})" if c.latest is not None else " on)"
+                )
             what = "flat length" if kind == "forecast_flat_length" else "peak force at line speed"
-            alarm(kind, lv, _FORECAST_SEVERITY[lv],  # type: ignore[arg-type]
-                  f"{what} grows {trend.slope_per_day * scale:.3g} ± "
-                  f"{trend.slope_se_per_day * scale:.2g} {unit}/day over {trend.points} "
-                  f"diagnoses: {lv} limit {limit_of(lv) * scale:g} {unit} predicted on "
-                  f"{_day(c.at)}{span}, within the {horizon / 86400:g}-day horizon",
-                  [e.diagnosis_id for e in fit], c.to_json())
+            alarm(
+                kind,
+                lv,
+                _FORECAST_SEVERITY[lv],
+                f"{what} grows {trend.slope_per_day * scale:.3g} ± "
+                f"{trend.slope_se_per_day * scale:.2g} {unit}/day over {trend.points} "
+                f"diagnoses: {lv} limit {limit_of(lv) * scale:g} {unit} predicted on "
+                f"{_day(c.at)}{span}, within the {horizon / 86400:g}-day horizon",
+                [e.diagnosis_id for e in fit],
+                c.to_json(),
+            )
             break  # the nearer limit is enough per kind
     return Decision(out, alarmed, episode, cleared)
 
@@ -150,8 +184,9 @@ def _reasons(e: Entry) -> list[str]:
     return [str(x) for x in r] if isinstance(r, list) else []
 
 
-def apply(store: Store, wheel_id: str, limits: FleetLimits, horizon: float,
-          now: float | None = None) -> list[FleetAlarm]:
+def apply(
+    store: Store, wheel_id: str, limits: FleetLimits, horizon: float, now: float | None = None
+) -> list[FleetAlarm]:
     """Evaluate the wheel, persist its alarm state; the alarms newly raised (to publish)."""
     wheel = store.wheel(wheel_id)
     if wheel is None:
@@ -162,8 +197,16 @@ def apply(store: Store, wheel_id: str, limits: FleetLimits, horizon: float,
         store.clear_alarms(wheel_id, time.time() if now is None else now)
     raised = []
     for a in d.alarms:  # alarms first: a crash before the state update re-decides them,
-        row = AlarmRow(a.wheel_id, a.kind, a.level, a.episode, a.raised_at, a.data_time, None,
-                       a.model_dump_json())  # and the primary key keeps them single
+        row = AlarmRow(
+            a.wheel_id,
+            a.kind,
+            a.level,
+            a.episode,
+            a.raised_at,
+            a.data_time,
+            None,
+            a.model_dump_json(),
+        )  # and the primary key keeps them single
         if store.add_alarm(row):
             raised.append(a)
     if (d.alarmed_level, d.episode) != (wheel.alarmed_level, wheel.episode):

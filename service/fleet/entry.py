@@ -56,7 +56,11 @@ class Entry:
     @property
     def length_sigma(self) -> float | None:
         """σ of the flat length from its 95 % interval (at least MIN_LENGTH_SIGMA)."""
-        if self.flat_length is None or self.flat_length_low is None or self.flat_length_high is None:
+        if (
+            self.flat_length is None
+            or self.flat_length_low is None
+            or self.flat_length_high is None
+        ):
             return None
         return max((self.flat_length_high - self.flat_length_low) / (2 * Z95), MIN_LENGTH_SIGMA)
 
@@ -64,12 +68,16 @@ class Entry:
         """The entry as the wheel queryable lists it (``flat`` as in Diagnosis)."""
         body = json.loads(self.body)
         return {
-            "site_id": self.site_id, "passage_id": self.passage_id,
-            "timestamp": self.timestamp, "verdict": self.verdict, "flat": body.get("flat"),
+            "site_id": self.site_id,
+            "passage_id": self.passage_id,
+            "timestamp": self.timestamp,
+            "verdict": self.verdict,
+            "flat": body.get("flat"),
             "reasons": body.get("reasons", []),
             "peak_force_measured": self.peak_force_measured,
             "peak_force_at_line_speed": self.peak_force_at_line_speed,
-            "speed": self.speed, "distance_run": self.distance_run,
+            "speed": self.speed,
+            "distance_run": self.distance_run,
         }
 
     def with_speed(self, speed: float | None) -> Entry:
@@ -90,24 +98,30 @@ def entry_from_payload(payload: bytes | str, received_at: float) -> Entry:
 def entry_from_diagnosis(diag: Diagnosis, received_at: float) -> Entry:
     timestamp = diag.timestamp
     if timestamp is None or not math.isfinite(timestamp):
-        raise EntryError(f"diagnosis {diag.site_id}/{diag.passage_id} has no timestamp (a "
-                         "1.0 message): the fleet cannot place it in a wheel's history")
+        raise EntryError(
+            f"diagnosis {diag.site_id}/{diag.passage_id} has no timestamp (a "
+            "1.0 message): the fleet cannot place it in a wheel's history"
+        )
     wheel = diag.wheel
     flat = diag.flat
     return Entry(
-        site_id=diag.site_id, passage_id=diag.passage_id,
+        site_id=diag.site_id,
+        passage_id=diag.passage_id,
         wheel_id=wheel.id if wheel is not None else None,
         vehicle_id=wheel.vehicle_id if wheel is not None else None,
         wheelset=wheel.wheelset if wheel is not None else None,
         side=wheel.side if wheel is not None else None,
-        timestamp=float(timestamp), verdict=diag.verdict,
+        timestamp=float(timestamp),
+        verdict=diag.verdict,
         flat_kind=flat.kind if flat is not None else None,
         flat_length=flat.length if flat is not None else None,
         flat_length_low=flat.length_low if flat is not None else None,
         flat_length_high=flat.length_high if flat is not None else None,
         peak_force_measured=diag.peak_force_measured,
         peak_force_at_line_speed=diag.peak_force_at_line_speed,
-        speed=None, distance_run=None, received_at=received_at,
+        speed=None,
+        distance_run=None,
+        received_at=received_at,
         body=diag.model_dump_json(),
     )
 
@@ -121,7 +135,13 @@ def speed_of_result(payload: bytes | str) -> tuple[str, str, float] | None:
     if not isinstance(data, dict):
         return None
     site, pid, speed = data.get("site_id"), data.get("passage_id"), data.get("speed")
-    if (isinstance(site, str) and isinstance(pid, str) and isinstance(speed, int | float)
-            and not isinstance(speed, bool) and math.isfinite(speed) and speed > 0):
+    if (
+        isinstance(site, str)
+        and isinstance(pid, str)
+        and isinstance(speed, int | float)
+        and not isinstance(speed, bool)
+        and math.isfinite(speed)
+        and speed > 0
+    ):
         return site, pid, float(speed)
     return None

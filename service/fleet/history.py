@@ -54,16 +54,22 @@ def _force_sigma(e: Entry) -> float | None:
 
 
 def length_trend(entries: Sequence[Entry]) -> Trend | None:
-    pts = [(e.timestamp, e.flat_length, e.length_sigma) for e in entries
-           if e.flat_length is not None and e.length_sigma is not None]
+    pts = [
+        (e.timestamp, e.flat_length, e.length_sigma)
+        for e in entries
+        if e.flat_length is not None and e.length_sigma is not None
+    ]
     if not pts:
         return None
     return fit_trend([p[0] for p in pts], [p[1] for p in pts], [p[2] for p in pts])
 
 
 def force_trend(entries: Sequence[Entry]) -> Trend | None:
-    pts = [(e.timestamp, e.peak_force_at_line_speed, _force_sigma(e)) for e in entries
-           if e.peak_force_at_line_speed is not None]
+    pts = [
+        (e.timestamp, e.peak_force_at_line_speed, _force_sigma(e))
+        for e in entries
+        if e.peak_force_at_line_speed is not None
+    ]
     if not pts:
         return None
     sigmas = [p[2] for p in pts]
@@ -84,13 +90,17 @@ def trend_json(trend: Trend | None, limit_of: Any, unit: str) -> dict[str, Any] 
     return doc
 
 
-def wheel_document(wheel_id: str, history: Sequence[Entry], limits: FleetLimits,
-                   last_verdict: str | None = None) -> dict[str, Any]:
+def wheel_document(
+    wheel_id: str, history: Sequence[Entry], limits: FleetLimits, last_verdict: str | None = None
+) -> dict[str, Any]:
     """The wheel's history and trend as the queryable answers (see module doc)."""
     vehicle, wheelset, side = wheel_id.rsplit("/", 2)
     fit = trend_entries(history)
     return {
-        "wheel_id": wheel_id, "vehicle_id": vehicle, "wheelset": int(wheelset), "side": side,
+        "wheel_id": wheel_id,
+        "vehicle_id": vehicle,
+        "wheelset": int(wheelset),
+        "side": side,
         "last_verdict": last_verdict or (history[-1].verdict if history else None),
         "history": [e.history_json() for e in history],
         "trend": {

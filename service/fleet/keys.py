@@ -1,11 +1,11 @@
 """The fleet's Zenoh keys (docs/fleet.md; CONTRACTS: wheel identity).
 
-    >>> alarm_key("V123", 2, "left"), wheel_key("V123/2/left")
-    ('railtwin/fleet/alarm/V123/2/left', 'railtwin/fleet/wheel/V123/2/left')
-    >>> wheel_id_of_key("railtwin/fleet/wheel/V123/2/left")
-    'V123/2/left'
-    >>> site_of_key("railtwin/km12/diagnosis/t1-a0-l")
-    'km12'
+>>> alarm_key("V123", 2, "left"), wheel_key("V123/2/left")
+('railtwin/fleet/alarm/V123/2/left', 'railtwin/fleet/wheel/V123/2/left')
+>>> wheel_id_of_key("railtwin/fleet/wheel/V123/2/left")
+'V123/2/left'
+>>> site_of_key("railtwin/km12/diagnosis/t1-a0-l")
+'km12'
 """
 
 from __future__ import annotations

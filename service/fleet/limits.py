@@ -39,8 +39,14 @@ class FleetLimits:
 
     @classmethod
     def from_config(cls, d: DiagnosisConfig) -> FleetLimits:
-        return cls(d.watch_length, d.inspect_length, d.remove_length,
-                   d.watch_force, d.inspect_force, d.remove_force)
+        return cls(
+            d.watch_length,
+            d.inspect_length,
+            d.remove_length,
+            d.watch_force,
+            d.inspect_force,
+            d.remove_force,
+        )
 
     @classmethod
     def defaults(cls) -> FleetLimits:

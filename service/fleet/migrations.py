@@ -53,8 +53,11 @@ class Migration:
 
 
 MIGRATIONS: tuple[Migration, ...] = (
-    Migration(1, "diagnoses keyed by (site_id, passage_id), indexed by wheel", (
-        """CREATE TABLE diagnosis (
+    Migration(
+        1,
+        "diagnoses keyed by (site_id, passage_id), indexed by wheel",
+        (
+            """CREATE TABLE diagnosis (
             site_id TEXT NOT NULL,
             passage_id TEXT NOT NULL,
             wheel_id TEXT,
@@ -75,18 +78,22 @@ MIGRATIONS: tuple[Migration, ...] = (
             body TEXT NOT NULL,
             PRIMARY KEY (site_id, passage_id)
         )""",
-        "CREATE INDEX diagnosis_wheel_time ON diagnosis (wheel_id, timestamp)",
-        "CREATE INDEX diagnosis_received ON diagnosis (received_at)",
-    )),
-    Migration(2, "sites and wheels: last passage, verdict and alarm state", (
-        """CREATE TABLE site (
+            "CREATE INDEX diagnosis_wheel_time ON diagnosis (wheel_id, timestamp)",
+            "CREATE INDEX diagnosis_received ON diagnosis (received_at)",
+        ),
+    ),
+    Migration(
+        2,
+        "sites and wheels: last passage, verdict and alarm state",
+        (
+            """CREATE TABLE site (
             site_id TEXT PRIMARY KEY,
             last_timestamp DOUBLE PRECISION NOT NULL,
             last_passage_id TEXT NOT NULL,
             last_verdict TEXT NOT NULL,
             diagnoses BIGINT NOT NULL
         )""",
-        """CREATE TABLE wheel (
+            """CREATE TABLE wheel (
             wheel_id TEXT PRIMARY KEY,
             vehicle_id TEXT NOT NULL,
             wheelset INTEGER NOT NULL,
@@ -96,12 +103,16 @@ MIGRATIONS: tuple[Migration, ...] = (
             alarmed_level INTEGER NOT NULL DEFAULT 0,
             episode INTEGER NOT NULL DEFAULT 0
         )""",
-        "CREATE INDEX wheel_vehicle ON wheel (vehicle_id)",
-        SITE_BACKFILL,
-        WHEEL_BACKFILL,
-    )),
-    Migration(3, "alarms raised, once per (wheel, kind, level, episode)", (
-        """CREATE TABLE alarm (
+            "CREATE INDEX wheel_vehicle ON wheel (vehicle_id)",
+            SITE_BACKFILL,
+            WHEEL_BACKFILL,
+        ),
+    ),
+    Migration(
+        3,
+        "alarms raised, once per (wheel, kind, level, episode)",
+        (
+            """CREATE TABLE alarm (
             wheel_id TEXT NOT NULL,
             kind TEXT NOT NULL,
             level TEXT NOT NULL,
@@ -112,8 +123,9 @@ MIGRATIONS: tuple[Migration, ...] = (
             body TEXT NOT NULL,
             PRIMARY KEY (wheel_id, kind, level, episode)
         )""",
-        "CREATE INDEX alarm_open ON alarm (cleared_at, raised_at)",
-    )),
+            "CREATE INDEX alarm_open ON alarm (cleared_at, raised_at)",
+        ),
+    ),
 )
 
 LATEST = MIGRATIONS[-1].version

@@ -43,12 +43,16 @@ def panel(doc: dict[str, Any], quantity: str, title: str, scale: float, unit: st
         elif h[quantity] is not None:
             pts.append((h["timestamp"], h[quantity], None, None))
     trend = doc["trend"][quantity]
-    limits = {lv: doc["limits"][f"{lv}_{'length' if quantity == 'flat_length' else 'force'}"]
-              for lv in ("watch", "inspect", "remove")}
+    limits = {
+        lv: doc["limits"][f"{lv}_{'length' if quantity == 'flat_length' else 'force'}"]
+        for lv in ("watch", "inspect", "remove")
+    }
     times = [p[0] for p in pts] or [h["timestamp"] for h in doc["history"]] or [time.time()]
     t0, t1 = min(times), max(times)
     if trend is not None:
-        ends = [c["at"] for c in trend["crossings"] if c["at"] is not None and c["status"] != "reached"]
+        ends = [
+            c["at"] for c in trend["crossings"] if c["at"] is not None and c["status"] != "reached"
+        ]
         if ends:
             t1 = max(t1, min(max(ends), t1 + MAX_FORECAST))
     if t1 - t0 < DAY:
@@ -64,32 +68,41 @@ def panel(doc: dict[str, Any], quantity: str, title: str, scale: float, unit: st
     def py(v: float) -> float:
         return H - BOTTOM - (v - v0) / (v1 - v0) * (H - TOP - BOTTOM)
 
-    out = [f'<svg class="plot" data-quantity="{quantity}" xmlns="http://www.w3.org/2000/svg" '
-           f'width="{W}" height="{H}" viewBox="0 0 {W} {H}" role="img">',
-           f'<text x="{LEFT}" y="16" font-size="13" font-weight="bold">{html.escape(title)} '
-           f'({unit})</text>',
-           f'<rect x="{LEFT}" y="{TOP}" width="{W - LEFT - RIGHT}" height="{H - TOP - BOTTOM}" '
-           'fill="none" stroke="#888"/>']
+    out = [
+        f'<svg class="plot" data-quantity="{quantity}" xmlns="http://www.w3.org/2000/svg" '
+        f'width="{W}" height="{H}" viewBox="0 0 {W} {H}" role="img">',
+        f'<text x="{LEFT}" y="16" font-size="13" font-weight="bold">{html.escape(title)} '
+        f"({unit})</text>",
+        f'<rect x="{LEFT}" y="{TOP}" width="{W - LEFT - RIGHT}" height="{H - TOP - BOTTOM}" '
+        'fill="none" stroke="#888"/>',
+    ]
     for v in _ticks(v0 * scale, v1 * scale):
         y = py(v / scale)
-        out.append(f'<line x1="{LEFT - 4}" y1="{y:.1f}" x2="{LEFT}" y2="{y:.1f}" stroke="#888"/>'
-                   f'<text x="{LEFT - 6}" y="{y + 4:.1f}" font-size="11" text-anchor="end">'
-                   f'{v:g}</text>')
+        out.append(
+            f'<line x1="{LEFT - 4}" y1="{y:.1f}" x2="{LEFT}" y2="{y:.1f}" stroke="#888"/>'
+            f'<text x="{LEFT - 6}" y="{y + 4:.1f}" font-size="11" text-anchor="end">'
+            f"{v:g}</text>"
+        )
     for t in _ticks(t0 / DAY, t1 / DAY, 6):
         x = px(t * DAY)
         label = time.strftime("%m-%d", time.gmtime(t * DAY))
-        out.append(f'<line x1="{x:.1f}" y1="{H - BOTTOM}" x2="{x:.1f}" y2="{H - BOTTOM + 4}" '
-                   f'stroke="#888"/><text x="{x:.1f}" y="{H - BOTTOM + 16}" font-size="11" '
-                   f'text-anchor="middle">{label}</text>')
-    out.append(f'<text x="{W - RIGHT}" y="{H - 4}" font-size="11" text-anchor="end">date (UTC)'
-               '</text>')
+        out.append(
+            f'<line x1="{x:.1f}" y1="{H - BOTTOM}" x2="{x:.1f}" y2="{H - BOTTOM + 4}" '
+            f'stroke="#888"/><text x="{x:.1f}" y="{H - BOTTOM + 16}" font-size="11" '
+            f'text-anchor="middle">{label}</text>'
+        )
+    out.append(
+        f'<text x="{W - RIGHT}" y="{H - 4}" font-size="11" text-anchor="end">date (UTC)</text>'
+    )
     for lv, lim in limits.items():
         y = py(lim)
-        out.append(f'<line class="limit" data-level="{lv}" x1="{LEFT}" y1="{y:.1f}" '
-                   f'x2="{W - RIGHT}" y2="{y:.1f}" stroke="{LIMIT_COLOURS[lv]}" '
-                   f'stroke-dasharray="6 4"/><text x="{W - RIGHT - 4}" y="{y - 4:.1f}" '
-                   f'font-size="11" text-anchor="end" fill="{LIMIT_COLOURS[lv]}">{lv} '
-                   f'{lim * scale:g}</text>')
+        out.append(
+            f'<line class="limit" data-level="{lv}" x1="{LEFT}" y1="{y:.1f}" '
+            f'x2="{W - RIGHT}" y2="{y:.1f}" stroke="{LIMIT_COLOURS[lv]}" '
+            f'stroke-dasharray="6 4"/><text x="{W - RIGHT - 4}" y="{y - 4:.1f}" '
+            f'font-size="11" text-anchor="end" fill="{LIMIT_COLOURS[lv]}">{lv} '
+            f"{lim * scale:g}</text>"
+        )
     if trend is not None:
         ta, tb = trend["t_first"], t1 - pad
         n = 40
@@ -102,40 +115,52 @@ def panel(doc: dict[str, Any], quantity: str, title: str, scale: float, unit: st
 
         upper = [(px(t), py(min(v1, line(t)[0] + Z95 * line(t)[1]))) for t in ts]
         lower = [(px(t), py(max(v0, line(t)[0] - Z95 * line(t)[1]))) for t in ts]
-        band = " ".join(f"{'M' if i == 0 else 'L'}{x:.1f},{y:.1f}"
-                        for i, (x, y) in enumerate(upper + lower[::-1]))
-        out.append(f'<path class="band" d="{band} Z" fill="#3060c0" fill-opacity="0.15" '
-                   'stroke="none"/>')
-        mid = " ".join(f"{'M' if i == 0 else 'L'}{px(t):.1f},{py(min(v1, max(v0, line(t)[0]))):.1f}"
-                       for i, t in enumerate(ts))
-        out.append(f'<path class="trend" d="{mid}" fill="none" stroke="#3060c0" '
-                   'stroke-width="2"/>')
+        band = " ".join(
+            f"{'M' if i == 0 else 'L'}{x:.1f},{y:.1f}"
+            for i, (x, y) in enumerate(upper + lower[::-1])
+        )
+        out.append(
+            f'<path class="band" d="{band} Z" fill="#3060c0" fill-opacity="0.15" stroke="none"/>'
+        )
+        mid = " ".join(
+            f"{'M' if i == 0 else 'L'}{px(t):.1f},{py(min(v1, max(v0, line(t)[0]))):.1f}"
+            for i, t in enumerate(ts)
+        )
+        out.append(f'<path class="trend" d="{mid}" fill="none" stroke="#3060c0" stroke-width="2"/>')
         for c in trend["crossings"]:
             if c["status"] == "forecast" and c["at"] is not None and c["at"] <= tb:
                 x = px(c["at"])
                 right = x > W - RIGHT - 140  # near the right edge: label to the left
-                out.append(f'<line class="crossing" x1="{x:.1f}" y1="{TOP}" x2="{x:.1f}" '
-                           f'y2="{H - BOTTOM}" stroke="{LIMIT_COLOURS[c["level"]]}" '
-                           f'stroke-width="1"/><text x="{x - 3 if right else x + 3:.1f}" '
-                           f'y="{TOP + 24 if right else TOP + 12}" font-size="11" '
-                           f'text-anchor="{"end" if right else "start"}" '
-                           f'fill="{LIMIT_COLOURS[c["level"]]}">{c["level"]} '
-                           f'{time.strftime("%Y-%m-%d", time.gmtime(c["at"]))}</text>')
+                out.append(
+                    f'<line class="crossing" x1="{x:.1f}" y1="{TOP}" x2="{x:.1f}" '
+                    f'y2="{H - BOTTOM}" stroke="{LIMIT_COLOURS[c["level"]]}" '
+                    f'stroke-width="1"/><text x="{x - 3 if right else x + 3:.1f}" '
+                    f'y="{TOP + 24 if right else TOP + 12}" font-size="11" '
+                    f'text-anchor="{"end" if right else "start"}" '
+                    f'fill="{LIMIT_COLOURS[c["level"]]}">{c["level"]} '
+                    f"{time.strftime('%Y-%m-%d', time.gmtime(c['at']))}</text>"
+                )
     for t, v, lo, hi in pts:
         x = px(t)
         if lo is not None and hi is not None:
-            out.append(f'<line x1="{x:.1f}" y1="{py(lo):.1f}" x2="{x:.1f}" y2="{py(hi):.1f}" '
-                       'stroke="#222"/>')
-        out.append(f'<circle class="point" cx="{x:.1f}" cy="{py(v):.1f}" r="4" fill="#222">'
-                   f'<title>{time.strftime("%Y-%m-%d %H:%M", time.gmtime(t))}: '
-                   f'{v * scale:.3g} {unit}</title></circle>')
+            out.append(
+                f'<line x1="{x:.1f}" y1="{py(lo):.1f}" x2="{x:.1f}" y2="{py(hi):.1f}" '
+                'stroke="#222"/>'
+            )
+        out.append(
+            f'<circle class="point" cx="{x:.1f}" cy="{py(v):.1f}" r="4" fill="#222">'
+            f"<title>{time.strftime('%Y-%m-%d %H:%M', time.gmtime(t))}: "
+            f"{v * scale:.3g} {unit}</title></circle>"
+        )
     if not pts:
-        out.append(f'<text x="{W / 2}" y="{H / 2}" text-anchor="middle" fill="#888">no data'
-                   '</text>')
+        out.append(f'<text x="{W / 2}" y="{H / 2}" text-anchor="middle" fill="#888">no data</text>')
     out.append("</svg>")
     return "\n".join(out)
 
 
 def wheel_svg(doc: dict[str, Any]) -> str:
-    return (panel(doc, "flat_length", "flat length", 1e3, "mm") + "\n"
-            + panel(doc, "peak_force_at_line_speed", "peak force at line speed", 1e-3, "kN"))
+    return (
+        panel(doc, "flat_length", "flat length", 1e3, "mm")
+        + "\n"
+        + panel(doc, "peak_force_at_line_speed", "peak force at line speed", 1e-3, "kN")
+    )

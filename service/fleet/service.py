@@ -71,11 +71,17 @@ class Counters:
 class FleetService:
     """See the module doc. ``start()``, then ``stop()`` (or use it as a context manager)."""
 
-    def __init__(self, session: zenoh.Session, store: Store, *,
-                 limits: FleetLimits | None = None,
-                 horizon: float = DEFAULT_HORIZON_DAYS * 86400.0,
-                 catch_up_margin: float = DEFAULT_CATCH_UP_MARGIN,
-                 catch_up_timeout: float = 10.0, health_period: float = 15.0) -> None:
+    def __init__(
+        self,
+        session: zenoh.Session,
+        store: Store,
+        *,
+        limits: FleetLimits | None = None,
+        horizon: float = DEFAULT_HORIZON_DAYS * 86400.0,
+        catch_up_margin: float = DEFAULT_CATCH_UP_MARGIN,
+        catch_up_timeout: float = 10.0,
+        health_period: float = 15.0,
+    ) -> None:
         self.session = session
         self.store = store
         self.limits = limits or FleetLimits.defaults()
@@ -111,8 +117,9 @@ class FleetService:
             self._threads.append(t)
         if catch_up:
             self.catch_up()
-            self._declared.append(s.liveliness().declare_subscriber(
-                keys.ALIVE_SUB, self._on_alive, history=True))
+            self._declared.append(
+                s.liveliness().declare_subscriber(keys.ALIVE_SUB, self._on_alive, history=True)
+            )
 
     def stop(self) -> None:
         self._stop.set()
@@ -170,7 +177,8 @@ class FleetService:
         n = 0
         try:
             replies = self.session.get(
-                f"{selector}?since={since:.3f}", timeout=self.catch_up_timeout,
+                f"{selector}?since={since:.3f}",
+                timeout=self.catch_up_timeout,
                 accept_replies=zenoh.ReplyKeyExpr.ANY,
                 consolidation=zenoh.ConsolidationMode.NONE,
                 target=zenoh.QueryTarget.ALL,
@@ -260,12 +268,21 @@ class FleetService:
 
     def _publish_alarm(self, a: FleetAlarm) -> None:
         self.counters.alarms += 1
-        log.warning("ALARM %s %s [%s] %s (evidence: %s)", a.wheel_id, a.level, a.severity,
-                    a.reason, ", ".join(a.evidence[-5:]))
+        log.warning(
+            "ALARM %s %s [%s] %s (evidence: %s)",
+            a.wheel_id,
+            a.level,
+            a.severity,
+            a.reason,
+            ", ".join(a.evidence[-5:]),
+        )
         key = keys.alarm_key(a.wheel.vehicle_id, a.wheel.wheelset, a.wheel.side)
         try:
-            self.session.put(key, a.model_dump_json(),
-                             encoding=JSON.with_schema(f"railtwin.FleetAlarm/{a.schema_version}"))
+            self.session.put(
+                key,
+                a.model_dump_json(),
+                encoding=JSON.with_schema(f"railtwin.FleetAlarm/{a.schema_version}"),
+            )
         except zenoh.ZError as exc:
             log.warning("alarm %s not published: %s", a.alarm_id, exc)
 
@@ -275,11 +292,11 @@ class FleetService:
         w = self.store.wheel(wheel_id)
         if w is None:
             return None
-        return wheel_document(wheel_id, self.store.history(wheel_id), self.limits,
-                              w.last_verdict)
+        return wheel_document(wheel_id, self.store.history(wheel_id), self.limits, w.last_verdict)
 
-    def alarms_document(self, all_alarms: bool = False,
-                        vehicle: str | None = None) -> dict[str, Any]:
+    def alarms_document(
+        self, all_alarms: bool = False, vehicle: str | None = None
+    ) -> dict[str, Any]:
         rows = self.store.alarms(open_only=not all_alarms)
         docs = [r.json() for r in rows]
         if vehicle is not None:
@@ -294,8 +311,9 @@ class FleetService:
                 if wheel_id is not None:
                     doc = self.wheel_document(wheel_id)
                     if doc is None:
-                        query.reply_err(json.dumps({"error": "unknown_wheel",
-                                                    "wheel_id": wheel_id}))
+                        query.reply_err(
+                            json.dumps({"error": "unknown_wheel", "wheel_id": wheel_id})
+                        )
                     else:
                         query.reply(keys.wheel_key(wheel_id), json.dumps(doc), encoding=JSON)
                     return
@@ -345,8 +363,16 @@ class FleetService:
 
     def status(self) -> dict[str, Any]:
         c = self.counters
-        return {"received": c.received, "stored": c.stored, "duplicates": c.duplicates,
-                "rejected": c.rejected, "dropped": c.dropped, "alarms": c.alarms,
-                "caught_up": c.caught_up, "queued": self._queue.qsize(),
-                "last_error": c.last_error, "uptime": time.time() - c.started_at,
-                "db": f"{self.store.dialect}: {self.store.where}"}
+        return {
+            "received": c.received,
+            "stored": c.stored,
+            "duplicates": c.duplicates,
+            "rejected": c.rejected,
+            "dropped": c.dropped,
+            "alarms": c.alarms,
+            "caught_up": c.caught_up,
+            "queued": self._queue.qsize(),
+            "last_error": c.last_error,
+            "uptime": time.time() - c.started_at,
+            "db": f"{self.store.dialect}: {self.store.where}",
+        }

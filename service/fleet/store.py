@@ -37,14 +37,30 @@ from service.fleet.migrations import (
 Dialect = Literal["sqlite", "postgresql"]
 
 ENTRY_COLUMNS = (
-    "site_id", "passage_id", "wheel_id", "vehicle_id", "wheelset", "side", "timestamp",
-    "verdict", "flat_kind", "flat_length", "flat_length_low", "flat_length_high",
-    "peak_force_measured", "peak_force_at_line_speed", "speed", "distance_run",
-    "received_at", "body",
+    "site_id",
+    "passage_id",
+    "wheel_id",
+    "vehicle_id",
+    "wheelset",
+    "side",
+    "timestamp",
+    "verdict",
+    "flat_kind",
+    "flat_length",
+    "flat_length_low",
+    "flat_length_high",
+    "peak_force_measured",
+    "peak_force_at_line_speed",
+    "speed",
+    "distance_run",
+    "received_at",
+    "body",
 )
 _COLS = ", ".join(ENTRY_COLUMNS)
-_INSERT = (f"INSERT INTO diagnosis ({_COLS}) VALUES ({', '.join('?' * len(ENTRY_COLUMNS))}) "
-           "ON CONFLICT (site_id, passage_id) DO NOTHING")
+_INSERT = (
+    f"INSERT INTO diagnosis ({_COLS}) VALUES ({', '.join('?' * len(ENTRY_COLUMNS))}) "
+    "ON CONFLICT (site_id, passage_id) DO NOTHING"
+)
 _SITE_UPSERT = """INSERT INTO site (site_id, last_timestamp, last_passage_id, last_verdict, diagnoses)
 VALUES (?, ?, ?, ?, 1)
 ON CONFLICT (site_id) DO UPDATE SET
@@ -162,9 +178,12 @@ class Store:
                 with self._transaction() as cur:
                     for stmt in m.statements:
                         self._exec(cur, stmt)
-                    self._exec(cur, "INSERT INTO schema_migrations (version, description, "
-                               "applied_at) VALUES (?, ?, ?)", (m.version, m.description,
-                                                                 time.time()))
+                    self._exec(
+                        cur,
+                        "INSERT INTO schema_migrations (version, description, "
+                        "applied_at) VALUES (?, ?, ?)",
+                        (m.version, m.description, time.time()),
+                    )
                 applied.append(m.version)
             if max(done | set(applied), default=0) > LATEST:
                 raise StoreError(
@@ -190,8 +209,11 @@ class Store:
                 new.append(e)
                 self._exec(cur, _SITE_UPSERT, (e.site_id, e.timestamp, e.passage_id, e.verdict))
                 if e.wheel_id is not None:
-                    self._exec(cur, _WHEEL_UPSERT, (e.wheel_id, e.vehicle_id, e.wheelset,
-                                                    e.side, e.timestamp, e.verdict))
+                    self._exec(
+                        cur,
+                        _WHEEL_UPSERT,
+                        (e.wheel_id, e.vehicle_id, e.wheelset, e.side, e.timestamp, e.verdict),
+                    )
         return new
 
     def bulk_insert(self, entries: Sequence[Entry]) -> None:
@@ -204,52 +226,87 @@ class Store:
             if self.dialect == "sqlite":
                 cur.executemany(_INSERT, rows)
             else:
-                self._exec(cur, "CREATE TEMP TABLE import_diagnosis (LIKE diagnosis) "
-                           "ON COMMIT DROP")
+                self._exec(
+                    cur, "CREATE TEMP TABLE import_diagnosis (LIKE diagnosis) ON COMMIT DROP"
+                )
                 with cur.cursor().copy(f"COPY import_diagnosis ({_COLS}) FROM STDIN") as copy:
                     for r in rows:
                         copy.write_row(r)
-                self._exec(cur, f"INSERT INTO diagnosis ({_COLS}) SELECT {_COLS} FROM "
-                           "import_diagnosis ON CONFLICT (site_id, passage_id) DO NOTHING")
+                self._exec(
+                    cur,
+                    f"INSERT INTO diagnosis ({_COLS}) SELECT {_COLS} FROM "
+                    "import_diagnosis ON CONFLICT (site_id, passage_id) DO NOTHING",
+                )
             self._exec(cur, "DELETE FROM site")
             self._exec(cur, SITE_BACKFILL)
-            self._exec(cur, "CREATE TEMP TABLE wheel_state AS SELECT wheel_id, alarmed_level, "
-                       "episode FROM wheel")
+            self._exec(
+                cur,
+                "CREATE TEMP TABLE wheel_state AS SELECT wheel_id, alarmed_level, "
+                "episode FROM wheel",
+            )
             self._exec(cur, "DELETE FROM wheel")
             self._exec(cur, WHEEL_BACKFILL)
-            self._exec(cur, "UPDATE wheel SET alarmed_level = (SELECT s.alarmed_level FROM "
-                       "wheel_state s WHERE s.wheel_id = wheel.wheel_id), episode = (SELECT "
-                       "s.episode FROM wheel_state s WHERE s.wheel_id = wheel.wheel_id) "
-                       "WHERE wheel_id IN (SELECT wheel_id FROM wheel_state)")
+            self._exec(
+                cur,
+                "UPDATE wheel SET alarmed_level = (SELECT s.alarmed_level FROM "
+                "wheel_state s WHERE s.wheel_id = wheel.wheel_id), episode = (SELECT "
+                "s.episode FROM wheel_state s WHERE s.wheel_id = wheel.wheel_id) "
+                "WHERE wheel_id IN (SELECT wheel_id FROM wheel_state)",
+            )
             self._exec(cur, "DROP TABLE wheel_state")
 
     def set_speed(self, site_id: str, passage_id: str, speed: float) -> bool:
         """Fill a stored diagnosis's speed (from its PassageResult); True if one was."""
         with self._transaction() as cur:
-            return self._exec(cur, "UPDATE diagnosis SET speed = ? WHERE site_id = ? AND "
-                              "passage_id = ? AND speed IS NULL",
-                              (speed, site_id, passage_id)) == 1
+            return (
+                self._exec(
+                    cur,
+                    "UPDATE diagnosis SET speed = ? WHERE site_id = ? AND "
+                    "passage_id = ? AND speed IS NULL",
+                    (speed, site_id, passage_id),
+                )
+                == 1
+            )
 
     def set_wheel_alarm_state(self, wheel_id: str, alarmed_level: int, episode: int) -> None:
         with self._transaction() as cur:
-            self._exec(cur, "UPDATE wheel SET alarmed_level = ?, episode = ? WHERE wheel_id = ?",
-                       (alarmed_level, episode, wheel_id))
+            self._exec(
+                cur,
+                "UPDATE wheel SET alarmed_level = ?, episode = ? WHERE wheel_id = ?",
+                (alarmed_level, episode, wheel_id),
+            )
 
     def add_alarm(self, row: AlarmRow) -> bool:
         """Record an alarm; False if this (wheel, kind, level, episode) was raised before."""
         with self._transaction() as cur:
-            return self._exec(
-                cur, "INSERT INTO alarm (wheel_id, kind, level, episode, raised_at, data_time, "
-                "cleared_at, body) VALUES (?, ?, ?, ?, ?, ?, ?, ?) ON CONFLICT "
-                "(wheel_id, kind, level, episode) DO NOTHING",
-                (row.wheel_id, row.kind, row.level, row.episode, row.raised_at, row.data_time,
-                 row.cleared_at, row.body)) == 1
+            return (
+                self._exec(
+                    cur,
+                    "INSERT INTO alarm (wheel_id, kind, level, episode, raised_at, data_time, "
+                    "cleared_at, body) VALUES (?, ?, ?, ?, ?, ?, ?, ?) ON CONFLICT "
+                    "(wheel_id, kind, level, episode) DO NOTHING",
+                    (
+                        row.wheel_id,
+                        row.kind,
+                        row.level,
+                        row.episode,
+                        row.raised_at,
+                        row.data_time,
+                        row.cleared_at,
+                        row.body,
+                    ),
+                )
+                == 1
+            )
 
     def clear_alarms(self, wheel_id: str, at: float) -> int:
         """Close the wheel's open alarms (its verdict went back to ok); how many."""
         with self._transaction() as cur:
-            return self._exec(cur, "UPDATE alarm SET cleared_at = ? WHERE wheel_id = ? AND "
-                              "cleared_at IS NULL", (at, wheel_id))
+            return self._exec(
+                cur,
+                "UPDATE alarm SET cleared_at = ? WHERE wheel_id = ? AND cleared_at IS NULL",
+                (at, wheel_id),
+            )
 
     # --- reading -----------------------------------------------------------------------
 
@@ -259,17 +316,24 @@ class Store:
     def history(self, wheel_id: str, limit: int | None = None) -> list[Entry]:
         """The wheel's diagnoses, oldest first (the last ``limit`` if given)."""
         if limit is None:
-            rows = self._rows(f"SELECT {_COLS} FROM diagnosis WHERE wheel_id = ? "
-                              "ORDER BY timestamp, site_id, passage_id", (wheel_id,))
+            rows = self._rows(
+                f"SELECT {_COLS} FROM diagnosis WHERE wheel_id = ? "
+                "ORDER BY timestamp, site_id, passage_id",
+                (wheel_id,),
+            )
         else:
-            rows = self._rows(f"SELECT {_COLS} FROM diagnosis WHERE wheel_id = ? "
-                              "ORDER BY timestamp DESC, site_id DESC, passage_id DESC LIMIT ?",
-                              (wheel_id, int(limit)))[::-1]
+            rows = self._rows(
+                f"SELECT {_COLS} FROM diagnosis WHERE wheel_id = ? "
+                "ORDER BY timestamp DESC, site_id DESC, passage_id DESC LIMIT ?",
+                (wheel_id, int(limit)),
+            )[::-1]
         return [Entry(*r) for r in rows]
 
     def entry(self, site_id: str, passage_id: str) -> Entry | None:
-        rows = self._rows(f"SELECT {_COLS} FROM diagnosis WHERE site_id = ? AND passage_id = ?",
-                          (site_id, passage_id))
+        rows = self._rows(
+            f"SELECT {_COLS} FROM diagnosis WHERE site_id = ? AND passage_id = ?",
+            (site_id, passage_id),
+        )
         return Entry(*rows[0]) if rows else None
 
     def latest_times(self) -> tuple[float, float] | None:
@@ -279,20 +343,28 @@ class Store:
         return None if t is None or r is None else (float(t), float(r))
 
     def sites(self) -> list[SiteRow]:
-        return [SiteRow(*r) for r in self._rows(
-            "SELECT site_id, last_timestamp, last_passage_id, last_verdict, diagnoses "
-            "FROM site ORDER BY site_id")]
+        return [
+            SiteRow(*r)
+            for r in self._rows(
+                "SELECT site_id, last_timestamp, last_passage_id, last_verdict, diagnoses "
+                "FROM site ORDER BY site_id"
+            )
+        ]
 
     def wheel(self, wheel_id: str) -> WheelRow | None:
-        rows = self._rows("SELECT wheel_id, vehicle_id, wheelset, side, last_timestamp, "
-                          "last_verdict, alarmed_level, episode FROM wheel WHERE wheel_id = ?",
-                          (wheel_id,))
+        rows = self._rows(
+            "SELECT wheel_id, vehicle_id, wheelset, side, last_timestamp, "
+            "last_verdict, alarmed_level, episode FROM wheel WHERE wheel_id = ?",
+            (wheel_id,),
+        )
         return WheelRow(*rows[0]) if rows else None
 
     def wheels(self, vehicle_id: str | None = None, limit: int = 500) -> list[WheelRow]:
         """Wheels of ``vehicle_id`` (all if None; a prefix ending in ``*`` matches several)."""
-        sql = ("SELECT wheel_id, vehicle_id, wheelset, side, last_timestamp, last_verdict, "
-               "alarmed_level, episode FROM wheel")
+        sql = (
+            "SELECT wheel_id, vehicle_id, wheelset, side, last_timestamp, last_verdict, "
+            "alarmed_level, episode FROM wheel"
+        )
         params: list[Any] = []
         if vehicle_id is not None:
             if vehicle_id.endswith("*"):
@@ -306,10 +378,13 @@ class Store:
         params.append(limit)
         return [WheelRow(*r) for r in self._rows(sql, params)]
 
-    def alarms(self, open_only: bool = True, wheel_id: str | None = None,
-               limit: int = 1000) -> list[AlarmRow]:
-        sql = ("SELECT wheel_id, kind, level, episode, raised_at, data_time, cleared_at, body "
-               "FROM alarm")
+    def alarms(
+        self, open_only: bool = True, wheel_id: str | None = None, limit: int = 1000
+    ) -> list[AlarmRow]:
+        sql = (
+            "SELECT wheel_id, kind, level, episode, raised_at, data_time, cleared_at, body "
+            "FROM alarm"
+        )
         cond, params = [], []
         if open_only:
             cond.append("cleared_at IS NULL")

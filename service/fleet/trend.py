@@ -119,10 +119,16 @@ def fit_trend(
         scale = chi2 / dof
         chi2_dof = None
     return Trend(
-        points=n, t_first=min(t), t_last=max(t), t_ref=t0 + xm * DAY,
-        value_at_ref=ym, value_se=math.sqrt(scale / sw),
-        slope_per_day=b, slope_se_per_day=math.sqrt(scale / sxx),
-        weighted=sigma is not None, chi2_per_dof=chi2_dof,
+        points=n,
+        t_first=min(t),
+        t_last=max(t),
+        t_ref=t0 + xm * DAY,
+        value_at_ref=ym,
+        value_se=math.sqrt(scale / sw),
+        slope_per_day=b,
+        slope_se_per_day=math.sqrt(scale / sxx),
+        weighted=sigma is not None,
+        chi2_per_dof=chi2_dof,
     )
 
 

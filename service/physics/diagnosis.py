@@ -76,66 +76,114 @@ class Diagnoser:
         cfg = site.diagnosis
         self.sensor = SensorModel(cfg.sensor_lowpass_hz, cfg.sensor_lowpass_order)
         self.rails = RailTables(self.physics.base_rail)
-        self.limits = Limits(cfg.watch_force, cfg.inspect_force, cfg.remove_force,
-                             cfg.watch_length, cfg.inspect_length, cfg.remove_length)
+        self.limits = Limits(
+            cfg.watch_force,
+            cfg.inspect_force,
+            cfg.remove_force,
+            cfg.watch_length,
+            cfg.inspect_length,
+            cfg.remove_length,
+        )
 
     def warm_up(self) -> float:
         """Diagnose one synthetic flat wheel (compiles the fit's kernels); returns seconds."""
         from sim_core.diagnosis.synthetic import Perturbations, synthetic_measurement
 
         start = time.perf_counter()
-        probe = WheelPassage(passage_id="warm-up", train_id="warm-up", axle_index=0,
-                             side="right", timestamp=0.0, speed=30.0, load=60e3, mass=600.0,
-                             radius=0.46)
+        probe = WheelPassage(
+            passage_id="warm-up",
+            train_id="warm-up",
+            axle_index=0,
+            side="right",
+            timestamp=0.0,
+            speed=30.0,
+            load=60e3,
+            mass=600.0,
+            radius=0.46,
+        )
         wheel = self.wheel(probe)
         rate = self.site.diagnosis.sample_rate or 10_000.0
-        m = synthetic_measurement(wheel, probe.speed, Flat.ideal(0.46, 0.04, 1.0),
-                                  self.physics.base_rail, self.site.length, rate, self.sensor,
-                                  Perturbations(roughness_rms=0.0, seed=0))
+        m = synthetic_measurement(
+            wheel,
+            probe.speed,
+            Flat.ideal(0.46, 0.04, 1.0),
+            self.physics.base_rail,
+            self.site.length,
+            rate,
+            self.sensor,
+            Perturbations(roughness_rms=0.0, seed=0),
+        )
         estimate_flat(wheel, probe.speed, m.t, m.force, self.sensor)
         return time.perf_counter() - start
 
     def wheel(self, passage: WheelPassage) -> WheelOnSite:
-        return WheelOnSite(passage.mass, passage.load, passage.radius,
-                           self.physics.contact_model(passage), self.physics.foundation,
-                           self.site.rtol)
+        return WheelOnSite(
+            passage.mass,
+            passage.load,
+            passage.radius,
+            self.physics.contact_model(passage),
+            self.physics.foundation,
+            self.site.rtol,
+        )
 
     def check(self, passage: WheelPassage, measured: MeasuredPassage) -> float:
         """Refuse what cannot be diagnosed; returns the speed to use (m/s)."""
         cfg = self.site.diagnosis
         if measured.passage_id != passage.passage_id:
-            raise MeasurementError("passage_id", f"{measured.passage_id!r} does not match the "
-                                   f"passage {passage.passage_id!r}")
-        if cfg.sample_rate is not None and not math.isclose(measured.sample_rate, cfg.sample_rate,
-                                                             rel_tol=1e-6):
-            raise MeasurementError("sample_rate", f"{measured.sample_rate:g} Hz does not match the "
-                                   f"site's measuring rate {cfg.sample_rate:g} Hz")
-        if cfg.sensor_lowpass_hz is not None and cfg.sensor_lowpass_hz >= 0.5 * measured.sample_rate:
-            raise MeasurementError("sample_rate", f"{measured.sample_rate:g} Hz is too low for the "
-                                   f"site's {cfg.sensor_lowpass_hz:g} Hz measuring chain")
+            raise MeasurementError(
+                "passage_id",
+                f"{measured.passage_id!r} does not match the passage {passage.passage_id!r}",
+            )
+        if cfg.sample_rate is not None and not math.isclose(
+            measured.sample_rate, cfg.sample_rate, rel_tol=1e-6
+        ):
+            raise MeasurementError(
+                "sample_rate",
+                f"{measured.sample_rate:g} Hz does not match the "
+                f"site's measuring rate {cfg.sample_rate:g} Hz",
+            )
+        if (
+            cfg.sensor_lowpass_hz is not None
+            and cfg.sensor_lowpass_hz >= 0.5 * measured.sample_rate
+        ):
+            raise MeasurementError(
+                "sample_rate",
+                f"{measured.sample_rate:g} Hz is too low for the "
+                f"site's {cfg.sensor_lowpass_hz:g} Hz measuring chain",
+            )
         speed = passage.speed
         if measured.speed is not None:
             if abs(measured.speed / passage.speed - 1.0) > SPEED_MISMATCH:
-                raise MeasurementError("speed", f"measured {measured.speed:g} m/s is more than "
-                                       f"{SPEED_MISMATCH:.0%} from the passage's {passage.speed:g} m/s")
+                raise MeasurementError(
+                    "speed",
+                    f"measured {measured.speed:g} m/s is more than "
+                    f"{SPEED_MISMATCH:.0%} from the passage's {passage.speed:g} m/s",
+                )
             speed = measured.speed
         on_site = self.site.length / speed
         if measured.duration < MIN_RECORD_FRACTION * on_site:
-            raise MeasurementError("force", f"the record lasts {measured.duration * 1e3:.1f} ms, "
-                                   f"less than {MIN_RECORD_FRACTION:.0%} of the "
-                                   f"{on_site * 1e3:.1f} ms the wheel spends on the site")
+            raise MeasurementError(
+                "force",
+                f"the record lasts {measured.duration * 1e3:.1f} ms, "
+                f"less than {MIN_RECORD_FRACTION:.0%} of the "
+                f"{on_site * 1e3:.1f} ms the wheel spends on the site",
+            )
         overlap = min(measured.t_start + measured.duration, on_site) - max(measured.t_start, 0.0)
         if overlap < MIN_RECORD_FRACTION * on_site:
             raise MeasurementError(
-                "t_start", f"the record [{measured.t_start:g}, "
+                "t_start",
+                f"the record [{measured.t_start:g}, "
                 f"{measured.t_start + measured.duration:g}] s covers less than "
-                f"{MIN_RECORD_FRACTION:.0%} of the wheel's time on the site [0, {on_site:g}] s")
+                f"{MIN_RECORD_FRACTION:.0%} of the wheel's time on the site [0, {on_site:g}] s",
+            )
         f = np.asarray(measured.force)
         if float(np.ptp(f)) == 0.0:
             raise MeasurementError("force", "the record is constant: no sensor signal")
         return speed
 
-    def diagnose(self, passage: WheelPassage, measured: MeasuredPassage) -> tuple[Diagnosis, FitCurves]:
+    def diagnose(
+        self, passage: WheelPassage, measured: MeasuredPassage
+    ) -> tuple[Diagnosis, FitCurves]:
         start = time.perf_counter()
         speed = self.check(passage, measured)
         wheel = self.wheel(passage)
@@ -159,54 +207,91 @@ class Diagnoser:
         line_high: float | None = None
         if cfg.line_speed is not None:
             at_line = self._line_peak(fit_wheel, cfg.line_speed, flat, measured.sample_rate)
-            line_low, line_high = self._line_band(wheel, cfg.line_speed, est, at_line,
-                                                  measured.sample_rate)
+            line_low, line_high = self._line_band(
+                wheel, cfg.line_speed, est, at_line, measured.sample_rate
+            )
         finding = None
         if flat is not None:
-            finding = FlatFinding(kind=flat.kind, length=flat.length, depth=flat.depth,
-                                  phase=flat.phase, length_low=est.length_low,
-                                  length_high=est.length_high, depth_factor=est.depth_factor)
+            finding = FlatFinding(
+                kind=flat.kind,
+                length=flat.length,
+                depth=flat.depth,
+                phase=flat.phase,
+                length_low=est.length_low,
+                length_high=est.length_high,
+                depth_factor=est.depth_factor,
+            )
         peak_measured = float(np.max(f))
         if explained:
-            level, reasons = verdict(self.limits, peak_measured, at_line,
-                                     flat.length if flat is not None else None, cfg.line_speed)
+            level, reasons = verdict(
+                self.limits,
+                peak_measured,
+                at_line,
+                flat.length if flat is not None else None,
+                cfg.line_speed,
+            )
         else:
             # the fit does not explain the record: judge the wheel by what was measured and by
             # the worst the interval allows (a flat is certainly there when the record stands
             # this far above its noise, but not the fitted one)
             worst_len = est.length_high if flat is not None else None
-            level, reasons = verdict(self.limits, peak_measured, line_high, worst_len,
-                                     cfg.line_speed)
-            basis = ("the measured peaks, the upper end of the length interval and of the "
-                     "line-speed forecast" if flat is not None else "the measured peaks")
-            reasons.insert(0, f"the fit does not explain the measurement (residual "
-                              f"{est.fit_rms / 1e3:.1f} kN rms = {ratio:.1f} x the record's noise "
-                              f"{noise / 1e3:.2f} kN > {EXPLAINED_RATIO:g}): verdict from "
-                              f"{basis}")
-        impacts = (flat_times(passage.radius, est.speed, flat.phase, float(t[0]), float(t[-1]))
-                   if flat is not None else np.empty(0))
+            level, reasons = verdict(
+                self.limits, peak_measured, line_high, worst_len, cfg.line_speed
+            )
+            basis = (
+                "the measured peaks, the upper end of the length interval and of the "
+                "line-speed forecast"
+                if flat is not None
+                else "the measured peaks"
+            )
+            reasons.insert(
+                0,
+                f"the fit does not explain the measurement (residual "
+                f"{est.fit_rms / 1e3:.1f} kN rms = {ratio:.1f} x the record's noise "
+                f"{noise / 1e3:.2f} kN > {EXPLAINED_RATIO:g}): verdict from "
+                f"{basis}",
+            )
+        impacts = (
+            flat_times(passage.radius, est.speed, flat.phase, float(t[0]), float(t[-1]))
+            if flat is not None
+            else np.empty(0)
+        )
         diag = Diagnosis(
-            site_id=self.site.site_id, passage_id=passage.passage_id, flat=finding,
+            site_id=self.site.site_id,
+            passage_id=passage.passage_id,
+            flat=finding,
             verdict=level,  # type: ignore[arg-type]
-            reasons=reasons, peak_force_measured=peak_measured,
-            peak_force_fit=float(np.max(fitted)), fit_rms=est.fit_rms,
-            peak_force_at_line_speed=at_line, peak_force_at_line_speed_low=line_low,
-            peak_force_at_line_speed_high=line_high, noise_level=noise,
-            fit_residual_ratio=ratio if math.isfinite(ratio) else None, explained=explained,
+            reasons=reasons,
+            peak_force_measured=peak_measured,
+            peak_force_fit=float(np.max(fitted)),
+            fit_rms=est.fit_rms,
+            peak_force_at_line_speed=at_line,
+            peak_force_at_line_speed_low=line_low,
+            peak_force_at_line_speed_high=line_high,
+            noise_level=noise,
+            fit_residual_ratio=ratio if math.isfinite(ratio) else None,
+            explained=explained,
             wall_time=time.perf_counter() - start,
         )
         return diag, FitCurves(t, t * est.speed, f, fitted, impacts, est)
 
-    def _line_peak(self, wheel: WheelOnSite, line_speed: float, flat: Flat | None,
-                   sample_rate: float) -> float:
+    def _line_peak(
+        self, wheel: WheelOnSite, line_speed: float, flat: Flat | None, sample_rate: float
+    ) -> float:
         """The largest force the site would measure of ``wheel`` with ``flat`` at line speed."""
         dur = self.site.length / line_speed
         rate = self.sensor.fine_rate(sample_rate)
         tl = np.arange(0.0, dur, 1.0 / sample_rate)
         return float(np.max(self._measure(wheel, line_speed, flat, 0.0, dur, tl, rate)))
 
-    def _line_band(self, wheel: WheelOnSite, line_speed: float, est: FlatEstimate,
-                   point: float, sample_rate: float) -> tuple[float, float]:
+    def _line_band(
+        self,
+        wheel: WheelOnSite,
+        line_speed: float,
+        est: FlatEstimate,
+        point: float,
+        sample_rate: float,
+    ) -> tuple[float, float]:
         """(low, high) of the line-speed forecast: the fitted wheel with the ends of the length
         interval, every kind that fits, and the damping ratio's band (see docs/diagnosis.md)."""
         if est.best_kind is None or est.flat is None:
@@ -216,8 +301,10 @@ class Diagnoser:
         kinds: tuple[FlatKind, ...] = ("flat", "rounded_flat")
         zetas = {est.damping_ratio}
         if wheel.foundation.is_compliant:
-            zetas |= {est.damping_ratio * (1.0 - LINE_DAMPING_BAND),
-                      est.damping_ratio * (1.0 + LINE_DAMPING_BAND) + LINE_DAMPING_FLOOR}
+            zetas |= {
+                est.damping_ratio * (1.0 - LINE_DAMPING_BAND),
+                est.damping_ratio * (1.0 + LINE_DAMPING_BAND) + LINE_DAMPING_FLOOR,
+            }
         lows: list[float] = [point]
         highs: list[float] = [point]
         R = wheel.radius
@@ -227,17 +314,25 @@ class Diagnoser:
                 df = est.depth_factor if kind == est.best_kind else 1.0
                 flat = make_flat(R, kind, length, df).with_phase(phase)
                 for z in sorted(zetas):
-                    p = self._line_peak(with_damping_ratio(wheel, z), line_speed, flat,
-                                        sample_rate)
+                    p = self._line_peak(with_damping_ratio(wheel, z), line_speed, flat, sample_rate)
                     lows.append(p)
                     highs.append(p)
         return min(lows), max(highs)
 
-    def _measure(self, wheel: WheelOnSite, speed: float, flat: Flat | None, t0: float, t1: float,
-                 t_out: NDArray[np.float64], rate: float | None = None) -> NDArray[np.float64]:
+    def _measure(
+        self,
+        wheel: WheelOnSite,
+        speed: float,
+        flat: Flat | None,
+        t0: float,
+        t1: float,
+        t_out: NDArray[np.float64],
+        rate: float | None = None,
+    ) -> NDArray[np.float64]:
         """The wheel (with its run-in) over [t0, t1] as the site's sensor records it at ``t_out``."""
         if rate is None:
             rate = self.sensor.fine_rate(1.0 / float(np.median(np.diff(t_out))))
-        out = simulate_passage_run_in(wheel, speed, flat, self.rails, speed * t0,
-                                      speed * (t1 + 2.0 / rate), rate)
+        out = simulate_passage_run_in(
+            wheel, speed, flat, self.rails, speed * t0, speed * (t1 + 2.0 / rate), rate
+        )
         return self.sensor.measure(out.t, out.force, t_out)

@@ -54,8 +54,10 @@ def rail_profile(rail: object) -> RailProfile:
     if isinstance(rail, sc.SampledRail):
         return RailProfile.sampled(np.asarray(rail.x, float), np.asarray(rail.y, float))
     kind = getattr(rail, "kind", type(rail).__name__)
-    raise ValueError(f"rail kind {kind!r} must be resolved to a sampled rail before simulation "
-                     "(service.wire.site reads rail files)")
+    raise ValueError(
+        f"rail kind {kind!r} must be resolved to a sampled rail before simulation "
+        "(service.wire.site reads rail files)"
+    )
 
 
 def wheel_outline(outline: sc.Outline, radius: float) -> WheelOutline:

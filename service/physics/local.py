@@ -36,14 +36,21 @@ def make_model(kind: PhysicsKind, site: SiteConfig) -> SiteModel:
     return SitePhysics(site)
 
 
-def diagnose_with(diagnoser: Diagnoser, passage: WheelPassage,
-                  measured: MeasuredPassage) -> DiagnosisOutcome:
+def diagnose_with(
+    diagnoser: Diagnoser, passage: WheelPassage, measured: MeasuredPassage
+) -> DiagnosisOutcome:
     """Run ``Diagnoser.diagnose`` and keep what the twin needs (a ``MeasurementError`` goes
     to the caller as it is)."""
     diag, curves = diagnoser.diagnose(passage, measured)
     impacts_x = curves.impacts_t * curves.estimate.speed
-    return DiagnosisOutcome(diag, curves.t.tolist(), curves.measured.tolist(),
-                            curves.fitted.tolist(), curves.x.tolist(), impacts_x.tolist())
+    return DiagnosisOutcome(
+        diag,
+        curves.t.tolist(),
+        curves.measured.tolist(),
+        curves.fitted.tolist(),
+        curves.x.tolist(),
+        impacts_x.tolist(),
+    )
 
 
 class LocalPhysics:
@@ -90,8 +97,10 @@ class LocalPhysics:
 
     def diagnose(self, passage: WheelPassage, measured: MeasuredPassage) -> DiagnosisOutcome:
         if self._diagnose is None:
-            raise RuntimeError("this physics does not diagnose (it needs the site's own "
-                               "physics, --physics sim_core)")
+            raise RuntimeError(
+                "this physics does not diagnose (it needs the site's own "
+                "physics, --physics sim_core)"
+            )
         return self._diagnose(passage, measured)
 
     def already_applied(self, passage_id: str) -> int | None:

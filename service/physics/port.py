@@ -31,8 +31,16 @@ if TYPE_CHECKING:
     from sim_core.rail import RailProfile
 
 __all__ = [
-    "BudgetExceededError", "DiagnosisOutcome", "MeasurementError", "PhysicsKind",
-    "PhysicsPort", "RailSnapshot", "Series", "Simulated", "SiteModel", "WorkerCrashedError",
+    "BudgetExceededError",
+    "DiagnosisOutcome",
+    "MeasurementError",
+    "PhysicsKind",
+    "PhysicsPort",
+    "RailSnapshot",
+    "Series",
+    "Simulated",
+    "SiteModel",
+    "WorkerCrashedError",
 ]
 
 PhysicsKind = Literal["sim_core", "stub"]
@@ -49,8 +57,10 @@ class BudgetExceededError(RuntimeError):
     """A call took longer than its wall-time budget; the worker was killed and restarted."""
 
     def __init__(self, what: str, budget: float) -> None:
-        super().__init__(f"{what} aborted: it took longer than the wall-time budget of "
-                         f"{budget:g} s a passage (--passage-budget)")
+        super().__init__(
+            f"{what} aborted: it took longer than the wall-time budget of "
+            f"{budget:g} s a passage (--passage-budget)"
+        )
         self.budget = budget
 
 

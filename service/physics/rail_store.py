@@ -43,8 +43,14 @@ from numpy.typing import NDArray
 
 from schemas.site import SiteConfig
 
-__all__ = ["DENT_MODEL", "STATE_SCHEMA", "RailState", "RailStore", "StateMismatchError",
-           "physics_fingerprint"]
+__all__ = [
+    "DENT_MODEL",
+    "STATE_SCHEMA",
+    "RailState",
+    "RailStore",
+    "StateMismatchError",
+    "physics_fingerprint",
+]
 
 STATE_SCHEMA = 2
 """Layout of the state file. 1: meta ``model_version`` (railtwin version and a digest of the
@@ -56,9 +62,14 @@ DENT_MODEL = 1
 Bump it when a change makes the same passage leave another dent: stored states are then
 refused rather than continued with dents of another model."""
 
-PHYSICS_PARTS = {"length": "the site length", "rail": "the rail", "material": "the material",
-                 "contact": "the contact law", "foundation": "the foundation",
-                 "dent_model": "the dent model (railtwin's plastic model changed)"}
+PHYSICS_PARTS = {
+    "length": "the site length",
+    "rail": "the rail",
+    "material": "the material",
+    "contact": "the contact law",
+    "foundation": "the foundation",
+    "dent_model": "the dent model (railtwin's plastic model changed)",
+}
 """What the rail's dents depend on, as named in a refusal."""
 
 
@@ -89,6 +100,7 @@ def _changed(stored: str, now: str) -> str:
     keys = [k for k in sorted(set(a) | set(b)) if a.get(k) != b.get(k)]
     return ", ".join(PHYSICS_PARTS.get(k, k) for k in keys) or "the physics"
 
+
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta (key TEXT PRIMARY KEY, value TEXT NOT NULL);
 CREATE TABLE IF NOT EXISTS rail (id INTEGER PRIMARY KEY CHECK (id = 1), revision INTEGER NOT NULL,
@@ -113,8 +125,9 @@ class RailState:
 class RailStore:
     """One site's state database (not thread-safe: the physics owns it)."""
 
-    def __init__(self, directory: Path, site_id: str, physics: str,
-                 written_by: str = "unknown") -> None:
+    def __init__(
+        self, directory: Path, site_id: str, physics: str, written_by: str = "unknown"
+    ) -> None:
         """Open (or create) ``<directory>/<site_id>.sqlite`` for the physics ``physics``
         (``physics_fingerprint``); ``written_by`` is recorded (the railtwin version)."""
         directory.mkdir(parents=True, exist_ok=True)
@@ -132,11 +145,19 @@ class RailStore:
             self._db.close()
             raise
         if not meta:
-            self._set_meta({"site_id": site_id, "state_schema": str(STATE_SCHEMA),
-                            "physics": physics, "written_by": written_by})
+            self._set_meta(
+                {
+                    "site_id": site_id,
+                    "state_schema": str(STATE_SCHEMA),
+                    "physics": physics,
+                    "written_by": written_by,
+                }
+            )
         elif self.migrated_from is not None:  # the physics is taken as it is now
-            self._set_meta({"state_schema": str(STATE_SCHEMA), "physics": physics,
-                            "written_by": written_by}, drop=("model_version",))
+            self._set_meta(
+                {"state_schema": str(STATE_SCHEMA), "physics": physics, "written_by": written_by},
+                drop=("model_version",),
+            )
         elif meta.get("written_by") != written_by:  # an upgrade keeps the state
             self._set_meta({"written_by": written_by})
 
@@ -145,7 +166,8 @@ class RailStore:
             return
         if meta.get("site_id") != site_id:
             raise StateMismatchError(
-                f"state {self.path} belongs to site {meta.get('site_id')!r}, not {site_id!r}")
+                f"state {self.path} belongs to site {meta.get('site_id')!r}, not {site_id!r}"
+            )
         try:
             schema = int(meta.get("state_schema", "1"))
         except ValueError:
@@ -155,7 +177,8 @@ class RailStore:
                 f"state {self.path} was written by a newer railtwin ({meta.get('written_by')}, "
                 f"state schema {meta.get('state_schema')}; this one reads up to "
                 f"{STATE_SCHEMA}): upgrade railtwin, or move the state away to start the rail "
-                "afresh")
+                "afresh"
+            )
         if schema == 1:
             # schema 1 kept a digest of the whole site file, not of its physics: what changed
             # cannot be told, so the physics is taken as the site file gives it now
@@ -167,15 +190,17 @@ class RailStore:
                 f"state {self.path} holds a rail dented with other physics: "
                 f"{_changed(stored, physics)} changed since. Its dents belong to that physics; "
                 "move the state away (or give --state another directory) to start the rail "
-                "afresh, or restore the site file")
+                "afresh, or restore the site file"
+            )
 
     def _set_meta(self, values: dict[str, str], drop: tuple[str, ...] = ()) -> None:
         with self._db:
             self._db.execute("BEGIN IMMEDIATE")
             for key in drop:
                 self._db.execute("DELETE FROM meta WHERE key = ?", (key,))
-            self._db.executemany("INSERT OR REPLACE INTO meta VALUES (?, ?)",
-                                 sorted(values.items()))
+            self._db.executemany(
+                "INSERT OR REPLACE INTO meta VALUES (?, ?)", sorted(values.items())
+            )
 
     def meta(self) -> dict[str, str]:
         """The state file's metadata (site_id, state_schema, physics, written_by)."""
@@ -189,14 +214,18 @@ class RailStore:
         if row is None:
             return None
         rev, x, y = row
-        return RailState(int(rev), np.frombuffer(x, dtype=np.float64).copy(),
-                         np.frombuffer(y, dtype=np.float64).copy())
+        return RailState(
+            int(rev),
+            np.frombuffer(x, dtype=np.float64).copy(),
+            np.frombuffer(y, dtype=np.float64).copy(),
+        )
 
     def applied_revision(self, passage_id: str) -> int | None:
         """The rail revision the passage was applied at, or None if it never was."""
         with self._lock:
-            row = self._db.execute("SELECT revision FROM applied WHERE passage_id = ?",
-                                   (passage_id,)).fetchone()
+            row = self._db.execute(
+                "SELECT revision FROM applied WHERE passage_id = ?", (passage_id,)
+            ).fetchone()
         return None if row is None else int(row[0])
 
     def applied_count(self) -> int:
@@ -204,8 +233,13 @@ class RailStore:
         with self._lock:
             return int(self._db.execute("SELECT COUNT(*) FROM applied").fetchone()[0])
 
-    def commit(self, passage_id: str, revision: int, x: NDArray[np.float64] | None = None,
-               y: NDArray[np.float64] | None = None) -> None:
+    def commit(
+        self,
+        passage_id: str,
+        revision: int,
+        x: NDArray[np.float64] | None = None,
+        y: NDArray[np.float64] | None = None,
+    ) -> None:
         """Record a passage as applied at ``revision`` and, if it dented, the new rail; atomic."""
         with self._lock, self._db:
             self._db.execute("BEGIN IMMEDIATE")
@@ -213,8 +247,12 @@ class RailStore:
             if x is not None and y is not None:
                 self._db.execute(
                     "INSERT OR REPLACE INTO rail VALUES (1, ?, ?, ?)",
-                    (revision, np.ascontiguousarray(x, dtype=np.float64).tobytes(),
-                     np.ascontiguousarray(y, dtype=np.float64).tobytes()))
+                    (
+                        revision,
+                        np.ascontiguousarray(x, dtype=np.float64).tobytes(),
+                        np.ascontiguousarray(y, dtype=np.float64).tobytes(),
+                    ),
+                )
 
     def close(self) -> None:
         with self._lock:

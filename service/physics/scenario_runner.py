@@ -153,8 +153,9 @@ def _merged(base: dict[str, Any], edit: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-def package_result(scenario: sc.Scenario, derived: DerivedQuantities, out: MultiPassOutput,
-                   wall_time: float) -> res.Result:
+def package_result(
+    scenario: sc.Scenario, derived: DerivedQuantities, out: MultiPassOutput, wall_time: float
+) -> res.Result:
     """Turn sim_core's ``MultiPassOutput`` into the contract's ``Result``."""
     last = out.last
     series = res.Series(

@@ -63,21 +63,31 @@ class SitePhysics:
     # --- simulation --------------------------------------------------------------------
 
     def _table(self, passage: WheelPassage, rail: DentedRail) -> ConstraintTable:
-        return self._tables.table(wheel_outline(passage), rail, 0.0, self.site.length,
-                                  TableChoice(passage.phase))
+        return self._tables.table(
+            wheel_outline(passage), rail, 0.0, self.site.length, TableChoice(passage.phase)
+        )
 
     def contact_model(self, passage: WheelPassage) -> ContactModel:
-        model, _ = physics_inputs.contact_model(self.site.contact, self.material,
-                                                radius=passage.radius, load=passage.load,
-                                                mass=passage.mass)
+        model, _ = physics_inputs.contact_model(
+            self.site.contact,
+            self.material,
+            radius=passage.radius,
+            load=passage.load,
+            mass=passage.mass,
+        )
         return model
 
     def _spec(self, passage: WheelPassage, length: float) -> PassageSpec:
         """The passage over ``length`` m of the site, from static equilibrium."""
         return PassageSpec(
-            mass=passage.mass, load=passage.load, speed=passage.speed,
-            duration=length / passage.speed, sample_rate=self.site.output_sample_rate,
-            contact=self.contact_model(passage), foundation=self.foundation, initial=None,
+            mass=passage.mass,
+            load=passage.load,
+            speed=passage.speed,
+            duration=length / passage.speed,
+            sample_rate=self.site.output_sample_rate,
+            contact=self.contact_model(passage),
+            foundation=self.foundation,
+            initial=None,
             rtol=self.site.rtol,
         )
 
@@ -85,44 +95,71 @@ class SitePhysics:
         """Compile and exercise the physics once (no effect on the rail); returns seconds."""
         start = time.perf_counter()
         probe = WheelPassage(
-            passage_id="warm-up", train_id="warm-up", axle_index=0, side="right", timestamp=0.0,
-            speed=40.0, load=50000.0, mass=600.0, radius=0.46,
+            passage_id="warm-up",
+            train_id="warm-up",
+            axle_index=0,
+            side="right",
+            timestamp=0.0,
+            speed=40.0,
+            load=50000.0,
+            mass=600.0,
+            radius=0.46,
         )
-        simulate_passage(self._table(probe, self._rail),
-                         self._spec(probe, min(self.site.length, 0.5)))
+        simulate_passage(
+            self._table(probe, self._rail), self._spec(probe, min(self.site.length, 0.5))
+        )
         # every constraint path a wheel may take, so that no wheel pays for compilation
         warm_up_constraint()
         flat = probe.model_copy(update={"outline": FlatOutline(kind="flat", length=0.03)})
         self._table(flat, self._rail)
         # the dent press (compiled), on a scratch copy of the rail
         DentedRail.of(self.base_rail, 0.0, self.site.length).pressed(
-            np.array([0.5 * self.site.length]), np.array([-1e-5]), probe.radius)
+            np.array([0.5 * self.site.length]), np.array([-1e-5]), probe.radius
+        )
         return time.perf_counter() - start
 
     def simulate(self, passage: WheelPassage) -> PassageResult:
         start = time.perf_counter()
         rail = self._rail
         spec = self._spec(passage, self.site.length)
-        done = rail_pass(wheel_outline(passage), rail, spec, self._tables,
-                         TableChoice(passage.phase))
+        done = rail_pass(
+            wheel_outline(passage), rail, spec, self._tables, TableChoice(passage.phase)
+        )
         self._rail = done.rail
         self._done += 1
-        return self._result(passage, done.output, done.max_dent, rail.revision,
-                            time.perf_counter() - start)
+        return self._result(
+            passage, done.output, done.max_dent, rail.revision, time.perf_counter() - start
+        )
 
-    def _result(self, p: WheelPassage, out: PassageOutput, max_dent: float, revision: int,
-                wall: float) -> PassageResult:
+    def _result(
+        self, p: WheelPassage, out: PassageOutput, max_dent: float, revision: int, wall: float
+    ) -> PassageResult:
         s = summary_of(out, max_dent)
         return PassageResult(
-            site_id=self.site.site_id, passage_id=p.passage_id, train_id=p.train_id,
-            axle_index=p.axle_index, wheel=p.wheel, side=p.side, timestamp=p.timestamp, speed=p.speed,
-            sample_rate=self.site.output_sample_rate, t_start=float(out.t[0]),
-            site_length=self.site.length, x=out.x.tolist(), force=out.force.tolist(),
-            indentation=out.delta.tolist(), y_c=out.y_c.tolist(), y_ck=out.y_ck.tolist(),
-            transitions=[Transition(t=tr.t, kind=tr.kind, x=tr.x)  # type: ignore[arg-type]
-                         for tr in out.transitions],
+            site_id=self.site.site_id,
+            passage_id=p.passage_id,
+            train_id=p.train_id,
+            axle_index=p.axle_index,
+            wheel=p.wheel,
+            side=p.side,
+            timestamp=p.timestamp,
+            speed=p.speed,
+            sample_rate=self.site.output_sample_rate,
+            t_start=float(out.t[0]),
+            site_length=self.site.length,
+            x=out.x.tolist(),
+            force=out.force.tolist(),
+            indentation=out.delta.tolist(),
+            y_c=out.y_c.tolist(),
+            y_ck=out.y_ck.tolist(),
+            transitions=[
+                Transition(t=tr.t, kind=tr.kind, x=tr.x)  # type: ignore[arg-type]
+                for tr in out.transitions
+            ],
             summary=s,
-            rail_revision=revision, wall_time=wall, steps=out.steps,
+            rail_revision=revision,
+            wall_time=wall,
+            steps=out.steps,
         )
 
     # --- rail state --------------------------------------------------------------------
@@ -149,8 +186,12 @@ class SitePhysics:
             y = rail.profile.height(x)
             dent = np.clip(self.base_rail.height(x) - y, 0.0, None)
             state = RailState(
-                site_id=self.site.site_id, revision=rail.revision, passages_done=done,
-                x=x.tolist(), y=y.tolist(), dent=dent.tolist(),
+                site_id=self.site.site_id,
+                revision=rail.revision,
+                passages_done=done,
+                x=x.tolist(),
+                y=y.tolist(),
+                dent=dent.tolist(),
                 max_dent=float(dent.max()) if dent.size else 0.0,
             )
             self._state_cache = (rail.revision, done, state)
@@ -161,7 +202,11 @@ def summary_of(out: PassageOutput, max_dent: float) -> Summary:
     """The contract's summary fields of one passage."""
     s = summarize(out, max_dent)
     return Summary(
-        peak_force=s.peak_force, min_force=s.min_force, contact_losses=s.contact_losses,
-        first_loss_time=s.first_loss_time, time_out_of_contact=s.time_out_of_contact,
-        max_indentation=s.max_indentation, max_dent=s.max_dent,
+        peak_force=s.peak_force,
+        min_force=s.min_force,
+        contact_losses=s.contact_losses,
+        first_loss_time=s.first_loss_time,
+        time_out_of_contact=s.time_out_of_contact,
+        max_indentation=s.max_indentation,
+        max_dent=s.max_dent,
     )

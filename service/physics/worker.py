@@ -69,9 +69,13 @@ START_TIMEOUT = 600.0
 # --- the child ---------------------------------------------------------------------------------
 
 
-def _child_main(site: SiteConfig, kind: PhysicsKind, conn: Connection,
-                snapshot: RailSnapshot | None,
-                parent_pid: int) -> None:
+def _child_main(
+    site: SiteConfig,
+    kind: PhysicsKind,
+    conn: Connection,
+    snapshot: RailSnapshot | None,
+    parent_pid: int,
+) -> None:
     ignore_stop_signals()  # the service stops us (through the pipe), not the terminal
     exit_when_orphaned(parent_pid)  # even while compiling, when the pipe is not read
     from pydantic import ValidationError
@@ -111,17 +115,23 @@ def _child_main(site: SiteConfig, kind: PhysicsKind, conn: Connection,
                 if result.summary.max_dent > 0.0:
                     dented = (physics.rail_snapshot(), physics.rail_state())
                 series: Series | None = None
-                if msg[2]:  # the series too; the result crosses without its arrays (its JSON has them)
+                if msg[
+                    2
+                ]:  # the series too; the result crosses without its arrays (its JSON has them)
                     n = len(result.x)
-                    series = (series_json(result, "force", 0, n, 0, 1),
-                              series_json(result, "indentation", 0, n, 0, 1))
+                    series = (
+                        series_json(result, "force", 0, n, 0, 1),
+                        series_json(result, "indentation", 0, n, 0, 1),
+                    )
                     result = result.model_copy(update={key: [] for key in RESULT_ARRAYS})
                 conn.send(("ok", result, data, dented, series))
             elif op == "diagnose":
                 if diagnoser is None:
                     if own is None:
-                        raise ValueError("this physics does not diagnose (it needs the site's "
-                                         "own physics, --physics sim_core)")
+                        raise ValueError(
+                            "this physics does not diagnose (it needs the site's "
+                            "own physics, --physics sim_core)"
+                        )
                     from service.physics.diagnosis import Diagnoser
 
                     diagnoser = Diagnoser(site, physics=own)
@@ -152,9 +162,16 @@ class ProcessPhysics:
     One call at a time; ``rail_state`` never waits for the worker.
     """
 
-    def __init__(self, site: SiteConfig, kind: PhysicsKind = "sim_core", *,
-                 budget: float = 30.0, warm_up: bool = True, start_timeout: float = START_TIMEOUT,
-                 store: RailStore | None = None) -> None:
+    def __init__(
+        self,
+        site: SiteConfig,
+        kind: PhysicsKind = "sim_core",
+        *,
+        budget: float = 30.0,
+        warm_up: bool = True,
+        start_timeout: float = START_TIMEOUT,
+        store: RailStore | None = None,
+    ) -> None:
         self.site = site
         self.store = store
         self.kind = kind
@@ -176,8 +193,7 @@ class ProcessPhysics:
             self._done = store.applied_count()
             saved = store.load()
             if saved is not None:
-                self._snapshot = (RailProfile.sampled(saved.x, saved.y), saved.revision,
-                                  self._done)
+                self._snapshot = (RailProfile.sampled(saved.x, saved.y), saved.revision, self._done)
 
     @property
     def diagnoses(self) -> bool:
@@ -196,9 +212,12 @@ class ProcessPhysics:
 
     def _spawn(self) -> None:
         parent, child = self._ctx.Pipe()
-        proc = self._ctx.Process(target=_child_main, name="railtwin-physics",
-                                 args=(self.site, self.kind, child, self._snapshot, os.getpid()),
-                                 daemon=True)
+        proc = self._ctx.Process(
+            target=_child_main,
+            name="railtwin-physics",
+            args=(self.site, self.kind, child, self._snapshot, os.getpid()),
+            daemon=True,
+        )
         start_shielded(proc)  # a signal to the group while it starts is not its death
         child.close()
         self._proc, self._conn = proc, parent
@@ -211,7 +230,8 @@ class ProcessPhysics:
             if time.monotonic() > deadline:
                 self._kill()
                 raise RuntimeError(
-                    f"the physics worker did not start within {self.start_timeout:g} s")
+                    f"the physics worker did not start within {self.start_timeout:g} s"
+                )
         try:
             reply = parent.recv()
         except (EOFError, OSError) as exc:
@@ -244,18 +264,23 @@ class ProcessPhysics:
                 if not conn.poll(self.budget):
                     self._kill()  # a new worker is started for the next call
                     self.restarts += 1
-                    log.warning("%s: over the budget of %g s; the worker was killed and is "
-                                "restarted", what, self.budget)
+                    log.warning(
+                        "%s: over the budget of %g s; the worker was killed and is restarted",
+                        what,
+                        self.budget,
+                    )
                     raise BudgetExceededError(what, self.budget)
                 reply: tuple[Any, ...] = conn.recv()
             except (EOFError, OSError, BrokenPipeError) as exc:
                 code = self._proc.exitcode if self._proc is not None else None
                 self._kill()
                 self.restarts += 1
-                log.warning("%s: the physics worker died (exit code %s); it is restarted",
-                            what, code)
-                raise WorkerCrashedError(f"{what}: the physics worker died (exit code {code}); "
-                                    "it was restarted") from exc
+                log.warning(
+                    "%s: the physics worker died (exit code %s); it is restarted", what, code
+                )
+                raise WorkerCrashedError(
+                    f"{what}: the physics worker died (exit code {code}); it was restarted"
+                ) from exc
         kind = reply[0]
         if kind == "ok":
             return reply
@@ -272,12 +297,14 @@ class ProcessPhysics:
         result, data, _ = self.simulate_parts(passage, light=False)
         return result, data
 
-    def simulate_parts(self, passage: WheelPassage,
-                       light: bool) -> tuple[PassageResult, bytes, Series | None]:
+    def simulate_parts(
+        self, passage: WheelPassage, light: bool
+    ) -> tuple[PassageResult, bytes, Series | None]:
         """The result, its JSON and, when ``light``, the series' JSON with a result whose
         arrays are empty (less to send across and to decode: the JSON is complete)."""
-        _, result, data, dented, series = self._call(f"passage {passage.passage_id}",
-                                                     ("simulate", passage, light))
+        _, result, data, dented, series = self._call(
+            f"passage {passage.passage_id}", ("simulate", passage, light)
+        )
         self._done += 1
         if dented is not None:  # a plastic site's new rail: a restarted worker goes on from it
             self._snapshot, self._state = dented
@@ -287,9 +314,12 @@ class ProcessPhysics:
         if self.store is not None:  # committed before it is published
             snap = self._snapshot
             dented_rail = snap[0] if dented is not None and snap is not None else None
-            self.store.commit(passage.passage_id, snap[1] if snap is not None else 0,
-                              None if dented_rail is None else dented_rail.x,
-                              None if dented_rail is None else dented_rail.y)
+            self.store.commit(
+                passage.passage_id,
+                snap[1] if snap is not None else 0,
+                None if dented_rail is None else dented_rail.x,
+                None if dented_rail is None else dented_rail.y,
+            )
         return result, data, series
 
     def already_applied(self, passage_id: str) -> int | None:
@@ -300,8 +330,9 @@ class ProcessPhysics:
         return self.simulate_json(passage)[0]
 
     def diagnose(self, passage: WheelPassage, measured: MeasuredPassage) -> DiagnosisOutcome:
-        out: DiagnosisOutcome = self._call(f"measurement of {passage.passage_id}",
-                                           ("diagnose", passage, measured))[1]
+        out: DiagnosisOutcome = self._call(
+            f"measurement of {passage.passage_id}", ("diagnose", passage, measured)
+        )[1]
         return out
 
     @property
@@ -329,7 +360,6 @@ class ProcessPhysics:
         self._kill()
 
 
-
 class PhysicsPool:
     """``workers`` worker processes; passages are submitted and their futures kept in order.
 
@@ -339,24 +369,36 @@ class PhysicsPool:
     passage is simulated.
     """
 
-    def __init__(self, site: SiteConfig, kind: PhysicsKind = "sim_core", *, workers: int = 1,
-                 budget: float = 30.0, warm_up: bool = True,
-                 store: RailStore | None = None) -> None:
+    def __init__(
+        self,
+        site: SiteConfig,
+        kind: PhysicsKind = "sim_core",
+        *,
+        workers: int = 1,
+        budget: float = 30.0,
+        warm_up: bool = True,
+        store: RailStore | None = None,
+    ) -> None:
         if workers < 1:
             raise ValueError(f"workers must be >= 1, got {workers}")
         if workers > 1 and site.contact == "hertz_plastic":
-            raise ValueError("a hertz_plastic site needs one worker: every passage rolls on the "
-                             "dents of the ones before")
+            raise ValueError(
+                "a hertz_plastic site needs one worker: every passage rolls on the "
+                "dents of the ones before"
+            )
         self.site = site
         self.kind = kind
         self.store = store
-        self.workers = [ProcessPhysics(site, kind, budget=budget, warm_up=warm_up, store=store)
-                        for _ in range(workers)]
+        self.workers = [
+            ProcessPhysics(site, kind, budget=budget, warm_up=warm_up, store=store)
+            for _ in range(workers)
+        ]
         self._idle: queue.SimpleQueue[ProcessPhysics] = queue.SimpleQueue()
         for w in self.workers:
             self._idle.put(w)
-        self._executor = ThreadPoolExecutor(max_workers=workers,
-                                            thread_name_prefix="railtwin-physics")
+        self._executor = ThreadPoolExecutor(
+            max_workers=workers, thread_name_prefix="railtwin-physics"
+        )
 
     @property
     def size(self) -> int:
@@ -420,15 +462,17 @@ class PhysicsPool:
 
     def diagnose(self, passage: WheelPassage, measured: MeasuredPassage) -> DiagnosisOutcome:
         out: DiagnosisOutcome = self._executor.submit(
-            self._with_worker, lambda w: w.diagnose(passage, measured)).result()
+            self._with_worker, lambda w: w.diagnose(passage, measured)
+        ).result()
         return out
 
     def rail_state(self) -> RailState:
         state = self.workers[0].rail_state()
         if len(self.workers) == 1:
             return state
-        return state.model_copy(update={"passages_done": sum(w.passages_done
-                                                             for w in self.workers)})
+        return state.model_copy(
+            update={"passages_done": sum(w.passages_done for w in self.workers)}
+        )
 
     def close(self, timeout: float = 5.0) -> None:
         self._executor.shutdown(wait=False, cancel_futures=True)

@@ -76,16 +76,22 @@ def log_entry(model_name: str, data: bytes, time_ns: int) -> Log | None:
             e = ServiceError.model_validate_json(data)
             level = ERROR if e.kind == "simulation_failed" else WARNING
             about = f" (passage {e.passage_id})" if e.passage_id else ""
-            return Log(timestamp=stamp, level=level, message=f"{e.kind}{about}: {e.message}",
-                       name="railtwin.twin")
+            return Log(
+                timestamp=stamp,
+                level=level,
+                message=f"{e.kind}{about}: {e.message}",
+                name="railtwin.twin",
+            )
         if model_name == Diagnosis.__name__:
             d = Diagnosis.model_validate_json(data)
-            flat = ("no flat" if d.flat is None else
-                    f"{d.flat.kind} {d.flat.length * 1e3:.1f} mm")
+            flat = "no flat" if d.flat is None else f"{d.flat.kind} {d.flat.length * 1e3:.1f} mm"
             reasons = f" ({'; '.join(d.reasons)})" if d.reasons else ""
-            return Log(timestamp=stamp, level=VERDICT_LEVELS[d.verdict],
-                       message=f"passage {d.passage_id}: {d.verdict}, {flat}{reasons}",
-                       name="railtwin.diagnosis")
+            return Log(
+                timestamp=stamp,
+                level=VERDICT_LEVELS[d.verdict],
+                message=f"passage {d.passage_id}: {d.verdict}, {flat}{reasons}",
+                name="railtwin.diagnosis",
+            )
     except ValidationError:
         return None
     return None
@@ -129,5 +135,10 @@ def samples(result_json: bytes) -> Iterator[tuple[int, bytes]]:
     for x, f, d in zip(xs, fs, ds, strict=False):
         ns = round((t0 + x / speed) * 1e9)
         sec, nsec = divmod(ns, 1_000_000_000)
-        yield ns, (f'{{"timestamp":{{"sec":{sec},"nsec":{nsec}}},"passage_id":{pid},'
-                   f'"x":{x:.7g},"force":{f:.7g},"indentation":{d:.7g}}}').encode()
+        yield (
+            ns,
+            (
+                f'{{"timestamp":{{"sec":{sec},"nsec":{nsec}}},"passage_id":{pid},'
+                f'"x":{x:.7g},"force":{f:.7g},"indentation":{d:.7g}}}'
+            ).encode(),
+        )

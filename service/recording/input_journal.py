@@ -49,7 +49,14 @@ from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["PART_BYTES", "PART_SECONDS", "InputJournal", "JournalEntry", "part_path", "read_journal"]
+__all__ = [
+    "PART_BYTES",
+    "PART_SECONDS",
+    "InputJournal",
+    "JournalEntry",
+    "part_path",
+    "read_journal",
+]
 
 MAGIC = b"RTJ1"
 _HEAD = struct.Struct("<4sHIQ")
@@ -92,8 +99,9 @@ class InputJournal:
     parts in any order, and whichever are left.
     """
 
-    def __init__(self, path: Path, part_bytes: int = PART_BYTES,
-                 part_seconds: float = PART_SECONDS) -> None:
+    def __init__(
+        self, path: Path, part_bytes: int = PART_BYTES, part_seconds: float = PART_SECONDS
+    ) -> None:
         if part_bytes <= 0:
             raise ValueError(f"part_bytes must be positive, got {part_bytes}")
         if not part_seconds > 0:
@@ -147,8 +155,10 @@ class InputJournal:
         with self._lock:
             if self._fd < 0:
                 return None
-            if self._size > 0 and (self._size + len(record) > self.part_bytes
-                                   or time.monotonic() - self._opened >= self.part_seconds):
+            if self._size > 0 and (
+                self._size + len(record) > self.part_bytes
+                or time.monotonic() - self._opened >= self.part_seconds
+            ):
                 os.close(self._fd)
                 done = self._part
                 self._part += 1
@@ -206,6 +216,6 @@ def read_journal(path: Path) -> Iterator[JournalEntry]:
         (crc,) = _CRC.unpack_from(data, end)
         if crc != zlib.crc32(data[pos:end]):
             return
-        key = data[pos + _HEAD.size:pos + _HEAD.size + klen].decode(errors="replace")
-        yield JournalEntry(key, ns, data[pos + _HEAD.size + klen:end])
+        key = data[pos + _HEAD.size : pos + _HEAD.size + klen].decode(errors="replace")
+        yield JournalEntry(key, ns, data[pos + _HEAD.size + klen : end])
         pos = end + _CRC.size

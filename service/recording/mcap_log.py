@@ -95,8 +95,9 @@ class McapLog:
         self.files.append(path)
         return writer
 
-    def _channel(self, writer: Writer, topic: str, model: type[BaseModel],
-                 schema_name: str | None = None) -> int:
+    def _channel(
+        self, writer: Writer, topic: str, model: type[BaseModel], schema_name: str | None = None
+    ) -> int:
         channel = self._channels.get(topic)
         if channel is None:
             name = schema_name or encoding_schema(model)
@@ -106,15 +107,22 @@ class McapLog:
                 schema = writer.register_schema(name=name, encoding="jsonschema", data=data)
                 self._schemas[name] = schema
             channel = writer.register_channel(
-                topic=topic, message_encoding="json", schema_id=schema,
+                topic=topic,
+                message_encoding="json",
+                schema_id=schema,
                 metadata={"model": model.__name__},
             )
             self._channels[topic] = channel
         return channel
 
     def write(
-        self, topic: str, model: type[BaseModel], data: bytes, log_time_ns: int,
-        publish_time_ns: int | None = None, schema_name: str | None = None,
+        self,
+        topic: str,
+        model: type[BaseModel],
+        data: bytes,
+        log_time_ns: int,
+        publish_time_ns: int | None = None,
+        schema_name: str | None = None,
     ) -> None:
         """Log one message (``data`` is its JSON) on ``topic``; rotates first if due.
         ``schema_name``: the channel's schema name when not railtwin's (``foxglove.Log``)."""
@@ -126,9 +134,11 @@ class McapLog:
             writer = self._open()
         channel = self._channel(writer, topic, model, schema_name)
         writer.add_message(
-            channel_id=channel, log_time=log_time_ns,
+            channel_id=channel,
+            log_time=log_time_ns,
             publish_time=log_time_ns if publish_time_ns is None else publish_time_ns,
-            data=data, sequence=self._sequence,
+            data=data,
+            sequence=self._sequence,
         )
         self._sequence += 1
 

@@ -78,8 +78,12 @@ def salvage(path: Path, report: RecoveryReport | None = None) -> Iterator[Logged
                     if ch is None:
                         continue
                     sc = schemas.get(ch.schema_id)
-                    yield LoggedMessage(topic=ch.topic, schema_name=sc.name if sc else "",
-                                        log_time_ns=record.log_time, data=record.data)
+                    yield LoggedMessage(
+                        topic=ch.topic,
+                        schema_name=sc.name if sc else "",
+                        log_time_ns=record.log_time,
+                        data=record.data,
+                    )
         except (McapError, struct.error, EOFError, ValueError) as exc:
             if report is not None:
                 report.damaged.append(f"{path}: cut at byte {f.tell()} ({type(exc).__name__})")
@@ -114,18 +118,25 @@ def journal_messages(path: Path) -> Iterator[LoggedMessage]:
     for e in read_journal(path):
         out = OUTPUT_MODELS.get(e.key.rsplit("/", 1)[-1])
         if out is not None:
-            yield LoggedMessage(e.key, f"railtwin.{out}/{MESSAGE_SCHEMA_VERSION}",
-                                e.received_ns, e.payload)
+            yield LoggedMessage(
+                e.key, f"railtwin.{out}/{MESSAGE_SCHEMA_VERSION}", e.received_ns, e.payload
+            )
             continue
         model: type[BaseModel] = MeasuredPassage if e.key.endswith("/measured") else WheelPassage
         try:
             model.model_validate_json(e.payload)
         except ValueError:
             rejected = RejectedInput(
-                key=e.key, payload_base64=base64.b64encode(e.payload).decode("ascii"),
-                payload_text=e.payload.decode("utf-8", errors="replace"))
-            yield LoggedMessage(f"{e.key}/rejected", encoding_schema(RejectedInput),
-                                e.received_ns, rejected.model_dump_json().encode())
+                key=e.key,
+                payload_base64=base64.b64encode(e.payload).decode("ascii"),
+                payload_text=e.payload.decode("utf-8", errors="replace"),
+            )
+            yield LoggedMessage(
+                f"{e.key}/rejected",
+                encoding_schema(RejectedInput),
+                e.received_ns,
+                rejected.model_dump_json().encode(),
+            )
             continue
         yield LoggedMessage(e.key, encoding_schema(model), e.received_ns, e.payload)
 
@@ -164,7 +175,9 @@ def recover(paths: list[Path], out: Path) -> RecoveryReport:
             model = MESSAGE_MODELS.get(m.schema_name.removeprefix("railtwin.").split("/")[0])
             if model is not None:
                 schema_data[m.schema_name] = (
-                    "jsonschema", json.dumps(model.model_json_schema()).encode())
+                    "jsonschema",
+                    json.dumps(model.model_json_schema()).encode(),
+                )
     msgs.sort(key=lambda m: m.log_time_ns)
     tmp = out.with_suffix(out.suffix + ".partial")
     with tmp.open("wb") as f:
@@ -182,8 +195,13 @@ def recover(paths: list[Path], out: Path) -> RecoveryReport:
                     schema_ids[m.schema_name] = sid
                 cid = w.register_channel(topic=m.topic, message_encoding="json", schema_id=sid)
                 channel_ids[m.topic] = cid
-            w.add_message(channel_id=cid, log_time=m.log_time_ns, publish_time=m.log_time_ns,
-                          data=m.data, sequence=seq)
+            w.add_message(
+                channel_id=cid,
+                log_time=m.log_time_ns,
+                publish_time=m.log_time_ns,
+                data=m.data,
+                sequence=seq,
+            )
             report.messages += 1
         w.finish()
     tmp.replace(out)

@@ -108,7 +108,8 @@ class ProcessRecorder:
         self._process = ctx.Process(
             target=_child_main,
             args=(plan, self._queue, self._status, os.getpid(), self._pending, self._flushed),
-            name="railtwin-recorder", daemon=True,
+            name="railtwin-recorder",
+            daemon=True,
         )
         start_shielded(self._process)  # a signal to the group while it starts is not its death
         self.failures = 0
@@ -122,23 +123,44 @@ class ProcessRecorder:
         self._closed = False
         self._done = threading.Event()
         if journal is not None:  # the journal lets go of what was flushed, even when idle
-            threading.Thread(target=self._release_loop, name="railtwin-journal-release",
-                             daemon=True).start()
+            threading.Thread(
+                target=self._release_loop, name="railtwin-journal-release", daemon=True
+            ).start()
 
     # --- front -------------------------------------------------------------------------
 
-    def message(self, topic: str, model: type[BaseModel], data: bytes, log_time_ns: int,
-                publish_time_ns: int | None = None, journal_ticket: int | None = None) -> None:
+    def message(
+        self,
+        topic: str,
+        model: type[BaseModel],
+        data: bytes,
+        log_time_ns: int,
+        publish_time_ns: int | None = None,
+        journal_ticket: int | None = None,
+    ) -> None:
         """``journal_ticket``: the ticket of this message's journal record, released once
         the message is in a flushed MCAP chunk."""
         if self.plan.mcap and not self._closed:
             # a result's samples on their own channel too, unless the child is behind
-            samples = (model is PassageResult
-                       and self.pending_bytes() + len(data) <= self.plan.samples_backlog_bytes)
+            samples = (
+                model is PassageResult
+                and self.pending_bytes() + len(data) <= self.plan.samples_backlog_bytes
+            )
             if model is PassageResult and not samples:
                 self.not_sampled += 1
-            self._put_waiting(("m", len(data), topic, model.__name__, data, log_time_ns,
-                               publish_time_ns, samples), journal_ticket)
+            self._put_waiting(
+                (
+                    "m",
+                    len(data),
+                    topic,
+                    model.__name__,
+                    data,
+                    log_time_ns,
+                    publish_time_ns,
+                    samples,
+                ),
+                journal_ticket,
+            )
 
     def passage(self, result: PassageResult, data: bytes | None = None) -> None:
         """``data``: the result's JSON if the caller has it already (saves serialising twice)."""
@@ -156,16 +178,34 @@ class ProcessRecorder:
             data = state.model_dump_json().encode()
             self._put(("r", len(data), data))
 
-    def diagnosis(self, diag: Diagnosis, curves_t: Sequence[float], measured: Sequence[float],
-                  fitted: Sequence[float], x: Sequence[float],
-                  impacts_x: Sequence[float]) -> None:
+    def diagnosis(
+        self,
+        diag: Diagnosis,
+        curves_t: Sequence[float],
+        measured: Sequence[float],
+        fitted: Sequence[float],
+        x: Sequence[float],
+        impacts_x: Sequence[float],
+    ) -> None:
         """Plain lists (or arrays) and the diagnosis's JSON cross to the child."""
         if self.plan.rerun and not self._closed:
             data = diag.model_dump_json().encode()
-            size = len(data) + 8 * (len(curves_t) + len(measured) + len(fitted) + len(x)
-                                    + len(impacts_x))
-            self._put_drawing(("g", size, data, list(curves_t), list(measured), list(fitted),
-                               list(x), list(impacts_x)), None)
+            size = len(data) + 8 * (
+                len(curves_t) + len(measured) + len(fitted) + len(x) + len(impacts_x)
+            )
+            self._put_drawing(
+                (
+                    "g",
+                    size,
+                    data,
+                    list(curves_t),
+                    list(measured),
+                    list(fitted),
+                    list(x),
+                    list(impacts_x),
+                ),
+                None,
+            )
 
     def pending_bytes(self) -> int:
         """Bytes queued for the child and not yet written (what the queue holds in memory)."""
@@ -226,8 +266,12 @@ class ProcessRecorder:
                     self.last_failure = (
                         f"MCAP message on {item[2]} dropped: the recorder is "
                         f"{self.pending_bytes() / 2**20:.0f} MB behind and "
-                        + ("has died" if not self._process.is_alive() else
-                           f"made no room within {self.plan.mcap_wait_timeout:g} s"))
+                        + (
+                            "has died"
+                            if not self._process.is_alive()
+                            else f"made no room within {self.plan.mcap_wait_timeout:g} s"
+                        )
+                    )
                     return
                 time.sleep(0.002)
         self._put(item, journal_ticket)
@@ -258,16 +302,19 @@ class ProcessRecorder:
         self._closed = True
         behind = []
         if self.not_drawn:
-            behind.append(f"{self.not_drawn} passages, dents or diagnoses not drawn in the Rerun "
-                          "recording")
+            behind.append(
+                f"{self.not_drawn} passages, dents or diagnoses not drawn in the Rerun recording"
+            )
         if self.not_sampled:
-            behind.append(f"{self.not_sampled} results not written sample by sample on the "
-                          "MCAP's samples channel")
+            behind.append(
+                f"{self.not_sampled} results not written sample by sample on the "
+                "MCAP's samples channel"
+            )
         if behind:
             self.failures += 1
             self.last_failure = (
-                f"{' and '.join(behind)}: the recorder was behind "
-                "(the MCAP log has them all)")
+                f"{' and '.join(behind)}: the recorder was behind (the MCAP log has them all)"
+            )
         if self._process.is_alive():
             self._queue.put(None)
             self._process.join(timeout)
@@ -300,8 +347,9 @@ class ProcessRecorder:
                 self.last_failure = text
 
 
-def _child_main(plan: RecordingPlan, inbox: Any, status: Any, parent_pid: int,
-                pending: Any, flushed: Any) -> None:
+def _child_main(
+    plan: RecordingPlan, inbox: Any, status: Any, parent_pid: int, pending: Any, flushed: Any
+) -> None:
     """The child's loop: write every queued item in order; flush MCAP regularly, then
     publish in ``flushed`` how many items are written and flushed."""
     ignore_stop_signals()
@@ -311,14 +359,23 @@ def _child_main(plan: RecordingPlan, inbox: Any, status: Any, parent_pid: int,
 
     models = all_models()
     mcap = (
-        McapLog(plan.directory, plan.stem, metadata=dict(plan.metadata), keep_bytes=plan.keep_bytes,
-                max_bytes=plan.mcap_max_bytes,
-                max_seconds=plan.mcap_max_seconds)
-        if plan.mcap else None
+        McapLog(
+            plan.directory,
+            plan.stem,
+            metadata=dict(plan.metadata),
+            keep_bytes=plan.keep_bytes,
+            max_bytes=plan.mcap_max_bytes,
+            max_seconds=plan.mcap_max_seconds,
+        )
+        if plan.mcap
+        else None
     )
     path = plan.rrd_path
-    rerun = (RerunRecording(path, plan.site_id, part_passages=plan.rrd_part_passages)
-             if path is not None else None)
+    rerun = (
+        RerunRecording(path, plan.site_id, part_passages=plan.rrd_part_passages)
+        if path is not None
+        else None
+    )
     rrd_path = path
     last_flush = time.monotonic()
     last_path: Path | None = None
@@ -369,7 +426,9 @@ def _child_main(plan: RecordingPlan, inbox: Any, status: Any, parent_pid: int,
                 rerun.close()
 
 
-def _write(item: tuple[Any, ...], models: dict[str, type[BaseModel]], mcap: Any, rerun: Any) -> None:
+def _write(
+    item: tuple[Any, ...], models: dict[str, type[BaseModel]], mcap: Any, rerun: Any
+) -> None:
     """One queued item: ``(kind, bytes it holds, ...)``."""
     if not item:
         return
@@ -380,13 +439,23 @@ def _write(item: tuple[Any, ...], models: dict[str, type[BaseModel]], mcap: Any,
         if with_samples:  # plottable against time in Foxglove
             sample_topic = foxglove.samples_topic(topic)
             for ns, sample in foxglove.samples(data):
-                mcap.write(sample_topic, foxglove.PassageSample, sample, ns, ns,
-                           schema_name=foxglove.SAMPLE_SCHEMA_NAME)
+                mcap.write(
+                    sample_topic,
+                    foxglove.PassageSample,
+                    sample,
+                    ns,
+                    ns,
+                    schema_name=foxglove.SAMPLE_SCHEMA_NAME,
+                )
         entry = foxglove.log_entry(model_name, data, log_time_ns)
         if entry is not None:  # errors and verdicts in Foxglove's Log panel too
-            mcap.write(foxglove.log_topic(topic), foxglove.Log,
-                       entry.model_dump_json().encode(), log_time_ns,
-                       schema_name=foxglove.SCHEMA_NAME)
+            mcap.write(
+                foxglove.log_topic(topic),
+                foxglove.Log,
+                entry.model_dump_json().encode(),
+                log_time_ns,
+                schema_name=foxglove.SCHEMA_NAME,
+            )
     elif kind == "p" and rerun is not None:
         rerun.log_passage(PassageResult.model_validate_json(rest[0]))
     elif kind == "s" and rerun is not None:
@@ -397,9 +466,10 @@ def _write(item: tuple[Any, ...], models: dict[str, type[BaseModel]], mcap: Any,
         import numpy as np
 
         diag, t, measured, fitted, x, impacts_x = rest
-        rerun.log_diagnosis(Diagnosis.model_validate_json(diag),
-                            *(np.asarray(a, dtype=np.float64)
-                              for a in (t, measured, fitted, x, impacts_x)))
+        rerun.log_diagnosis(
+            Diagnosis.model_validate_json(diag),
+            *(np.asarray(a, dtype=np.float64) for a in (t, measured, fitted, x, impacts_x)),
+        )
     elif kind == "r" and rerun is not None:
         import numpy as np
 

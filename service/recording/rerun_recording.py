@@ -99,13 +99,21 @@ def entities(site_id: str) -> dict[str, str]:
     """{role: entity path} of a site's recording (the whole, fixed set)."""
     root = f"/{rr.escape_entity_path_part(site_id)}"
     return {
-        "force": f"{root}/force", "transitions": f"{root}/force/transitions",
-        "indentation": f"{root}/indentation", "y_c": f"{root}/motion/y_c",
-        "y_ck": f"{root}/motion/y_ck", "motion": f"{root}/motion", "wheel": f"{root}/wheel",
-        "passages": f"{root}/passages", "rail": f"{root}/rail",
-        "profile": f"{root}/rail/profile", "dent": f"{root}/rail/dent",
-        "diagnosis": f"{root}/diagnosis", "measured": f"{root}/diagnosis/measured",
-        "fit": f"{root}/diagnosis/fit", "impacts": f"{root}/diagnosis/impacts",
+        "force": f"{root}/force",
+        "transitions": f"{root}/force/transitions",
+        "indentation": f"{root}/indentation",
+        "y_c": f"{root}/motion/y_c",
+        "y_ck": f"{root}/motion/y_ck",
+        "motion": f"{root}/motion",
+        "wheel": f"{root}/wheel",
+        "passages": f"{root}/passages",
+        "rail": f"{root}/rail",
+        "profile": f"{root}/rail/profile",
+        "dent": f"{root}/rail/dent",
+        "diagnosis": f"{root}/diagnosis",
+        "measured": f"{root}/diagnosis/measured",
+        "fit": f"{root}/diagnosis/fit",
+        "impacts": f"{root}/diagnosis/impacts",
         "verdict": f"{root}/diagnosis/verdict",
     }
 
@@ -118,8 +126,11 @@ def one_wheel_window() -> list[rrb.VisibleTimeRange]:
     """
     half = SLOT_MM // 2
     return [
-        rrb.VisibleTimeRange(timeline, start=rrb.TimeRangeBoundary.cursor_relative(seq=-half),
-                             end=rrb.TimeRangeBoundary.cursor_relative(seq=half))
+        rrb.VisibleTimeRange(
+            timeline,
+            start=rrb.TimeRangeBoundary.cursor_relative(seq=-half),
+            end=rrb.TimeRangeBoundary.cursor_relative(seq=half),
+        )
         for timeline in (X_TIMELINE, DIAGNOSIS_X_TIMELINE)
     ]
 
@@ -134,24 +145,35 @@ def default_blueprint(site_id: str) -> rrb.Blueprint:
             rrb.Horizontal(
                 rrb.TimeSeriesView(
                     name="Contact force F [N] of the wheel at the cursor (x_mm: passage·10⁶ + mm)",
-                    origin=e["force"], time_ranges=window,
+                    origin=e["force"],
+                    time_ranges=window,
                 ),
                 rrb.TextDocumentView(name="Wheel at the cursor", origin=e["wheel"]),
                 column_shares=[3, 1],
             ),
-            rrb.TimeSeriesView(name="Indentation δ [m]", origin=e["indentation"],
-                               time_ranges=window),
-            rrb.Horizontal(
-                rrb.TimeSeriesView(name="Wheel centre y_C and constraint y_C^k [m]",
-                                   origin=e["motion"], time_ranges=window),
-                rrb.TimeSeriesView(name="Rail: profile (slot 0), then the dent after each "
-                                   "denting passage [m]", origin=e["rail"]),
-                rrb.TextLogView(name="Passages (click one to show its wheel)",
-                                origin=e["passages"]),
+            rrb.TimeSeriesView(
+                name="Indentation δ [m]", origin=e["indentation"], time_ranges=window
             ),
             rrb.Horizontal(
-                rrb.TimeSeriesView(name="Diagnosis: measured and fitted force [N]",
-                                   origin=e["diagnosis"], time_ranges=window),
+                rrb.TimeSeriesView(
+                    name="Wheel centre y_C and constraint y_C^k [m]",
+                    origin=e["motion"],
+                    time_ranges=window,
+                ),
+                rrb.TimeSeriesView(
+                    name="Rail: profile (slot 0), then the dent after each denting passage [m]",
+                    origin=e["rail"],
+                ),
+                rrb.TextLogView(
+                    name="Passages (click one to show its wheel)", origin=e["passages"]
+                ),
+            ),
+            rrb.Horizontal(
+                rrb.TimeSeriesView(
+                    name="Diagnosis: measured and fitted force [N]",
+                    origin=e["diagnosis"],
+                    time_ranges=window,
+                ),
                 rrb.TextLogView(name="Verdicts", origin=e["verdict"]),
                 column_shares=[3, 1],
             ),
@@ -173,7 +195,8 @@ def x_index(x_m: NDArray[np.float64], slot: int = 0) -> NDArray[np.int64]:
     if len(mm) and (mm.min() < -MAX_SITE_MM or mm.max() >= MAX_SITE_MM):
         raise ValueError(
             f"positions {mm.min()} … {mm.max()} mm do not fit in half a slot of the x_mm "
-            f"time line (±{MAX_SITE_MM} mm): the recording draws sites shorter than 500 m")
+            f"time line (±{MAX_SITE_MM} mm): the recording draws sites shorter than 500 m"
+        )
     return mm + np.int64(slot) * SLOT_MM
 
 
@@ -189,8 +212,10 @@ def si(value: float, unit: str) -> str:
 def wheel_document(index: int, r: PassageResult) -> str:
     """The markdown that names the wheel of passage ``index`` (the ``wheel`` entity)."""
     s = r.summary
-    kinds = ", ".join(f"{tr.kind} at {si(tr.x if tr.x is not None else r.speed * tr.t, 'm')}"
-                      for tr in r.transitions[:12])
+    kinds = ", ".join(
+        f"{tr.kind} at {si(tr.x if tr.x is not None else r.speed * tr.t, 'm')}"
+        for tr in r.transitions[:12]
+    )
     more = f" (+{len(r.transitions) - 12} more)" if len(r.transitions) > 12 else ""
     return (
         f"### {r.passage_id}\n\n"
@@ -208,8 +233,14 @@ def wheel_document(index: int, r: PassageResult) -> str:
 class RerunRecording:
     """Writes one ``.rrd``; not thread-safe (the recorder's thread or process owns it)."""
 
-    def __init__(self, path: Path, site_id: str, *, recording_id: str | None = None,
-                 part_passages: int = PART_PASSAGES) -> None:
+    def __init__(
+        self,
+        path: Path,
+        site_id: str,
+        *,
+        recording_id: str | None = None,
+        part_passages: int = PART_PASSAGES,
+    ) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
         self.site_id = site_id
         self.entities = entities(site_id)
@@ -258,27 +289,44 @@ class RerunRecording:
         """Names and colours of the series, once (static)."""
         e, log = self.entities, self.rec.log
         log(e["force"], rr.SeriesLines(names="F [N]", aggregation_policy="MinMax"), static=True)
-        log(e["transitions"], rr.SeriesPoints(markers="circle", marker_sizes=4.0,
-                                              names="transitions F [N]"), static=True)
-        log(e["indentation"], rr.SeriesLines(names="δ [m]", aggregation_policy="MinMax"),
-            static=True)
+        log(
+            e["transitions"],
+            rr.SeriesPoints(markers="circle", marker_sizes=4.0, names="transitions F [N]"),
+            static=True,
+        )
+        log(
+            e["indentation"],
+            rr.SeriesLines(names="δ [m]", aggregation_policy="MinMax"),
+            static=True,
+        )
         log(e["y_c"], rr.SeriesLines(names="y_C [m]"), static=True)
         log(e["y_ck"], rr.SeriesLines(names="y_C^k [m]"), static=True)
         log(e["profile"], rr.SeriesLines(names="rail y_r at start [m]"), static=True)
         log(e["dent"], rr.SeriesLines(names="accumulated dent [m]"), static=True)
-        log(e["measured"], rr.SeriesLines(names="measured F [N]", colors=(120, 120, 120)),
-            static=True)
+        log(
+            e["measured"],
+            rr.SeriesLines(names="measured F [N]", colors=(120, 120, 120)),
+            static=True,
+        )
         log(e["fit"], rr.SeriesLines(names="fit F [N]", colors=(230, 60, 60)), static=True)
-        log(e["impacts"], rr.SeriesPoints(markers="cross", marker_sizes=6.0, names="impacts F [N]"),
-            static=True)
+        log(
+            e["impacts"],
+            rr.SeriesPoints(markers="cross", marker_sizes=6.0, names="impacts F [N]"),
+            static=True,
+        )
 
     def passage_index(self, passage_id: str) -> int | None:
         """The index (``passage`` time line) of a recent passage, None if not recorded."""
         found = self._index_of.get(passage_id)
         return None if found is None else found[0]
 
-    def _slot(self, index: int, n: int, stamp: float | None = None,
-              times: NDArray[np.float64] | None = None) -> list[rr.TimeColumn]:
+    def _slot(
+        self,
+        index: int,
+        n: int,
+        stamp: float | None = None,
+        times: NDArray[np.float64] | None = None,
+    ) -> list[rr.TimeColumn]:
         """The ``passage`` index of ``n`` rows; with the passage's time ``stamp`` also
         ``passage_time``, and ``time`` = ``stamp + times`` (s)."""
         cols = [rr.TimeColumn(PASSAGE_TIMELINE, sequence=np.full(n, index, dtype=np.int64))]
@@ -312,8 +360,10 @@ class RerunRecording:
         x = np.asarray(state.x)
         self.rec.send_columns(
             self.entities["dent"],
-            indexes=[rr.TimeColumn(X_TIMELINE, sequence=x_index(x, index)),
-                     *self._slot(index, len(x), stamp)],
+            indexes=[
+                rr.TimeColumn(X_TIMELINE, sequence=x_index(x, index)),
+                *self._slot(index, len(x), stamp),
+            ],
             columns=rr.Scalars.columns(scalars=np.asarray(state.dent, dtype=np.float64)),
         )
 
@@ -325,8 +375,10 @@ class RerunRecording:
         index = self._passages
         x = np.asarray(result.x)
         stamp = result.timestamp
-        index_cols = [rr.TimeColumn(X_TIMELINE, sequence=x_index(x, index)),
-                      *self._slot(index, len(x), stamp, x / result.speed)]
+        index_cols = [
+            rr.TimeColumn(X_TIMELINE, sequence=x_index(x, index)),
+            *self._slot(index, len(x), stamp, x / result.speed),
+        ]
         force = np.asarray(result.force, dtype=np.float64)
         series = (
             (e["force"], force),
@@ -335,32 +387,42 @@ class RerunRecording:
             (e["y_ck"], np.asarray(result.y_ck, dtype=np.float64)),
         )
         for entity, values in series:
-            self.rec.send_columns(entity, indexes=index_cols,
-                                  columns=rr.Scalars.columns(scalars=values))
+            self.rec.send_columns(
+                entity, indexes=index_cols, columns=rr.Scalars.columns(scalars=values)
+            )
         if result.transitions:
-            tx = np.array([tr.x if tr.x is not None else result.speed * tr.t
-                           for tr in result.transitions])
+            tx = np.array(
+                [tr.x if tr.x is not None else result.speed * tr.t for tr in result.transitions]
+            )
             tf = np.interp(tx, x, force) if len(x) else np.zeros(len(tx))
             self.rec.send_columns(
                 e["transitions"],
-                indexes=[rr.TimeColumn(X_TIMELINE, sequence=x_index(tx, index)),
-                         *self._slot(index, len(tx), stamp, tx / result.speed)],
+                indexes=[
+                    rr.TimeColumn(X_TIMELINE, sequence=x_index(tx, index)),
+                    *self._slot(index, len(tx), stamp, tx / result.speed),
+                ],
                 columns=[
                     *rr.Scalars.columns(scalars=tf),
                     *rr.SeriesPoints.columns(
-                        colors=[TRANSITION_COLORS[tr.kind] for tr in result.transitions]),
+                        colors=[TRANSITION_COLORS[tr.kind] for tr in result.transitions]
+                    ),
                 ],
             )
         s = result.summary
         self._set_times(index, stamp)
-        self.rec.log(e["wheel"], rr.TextDocument(wheel_document(index, result),
-                                                 media_type=rr.MediaType.MARKDOWN))
-        self.rec.log(e["passages"], rr.TextLog(
-            f"#{index} {result.passage_id} (train {result.train_id} axle {result.axle_index} "
-            f"{result.side}): peak {si(s.peak_force, 'N')}, {s.contact_losses} contact "
-            f"losses, max δ {si(s.max_indentation, 'm')}, dent {si(s.max_dent, 'm')}",
-            level="WARN" if s.contact_losses or s.max_dent > 0 else "INFO",
-        ))
+        self.rec.log(
+            e["wheel"],
+            rr.TextDocument(wheel_document(index, result), media_type=rr.MediaType.MARKDOWN),
+        )
+        self.rec.log(
+            e["passages"],
+            rr.TextLog(
+                f"#{index} {result.passage_id} (train {result.train_id} axle {result.axle_index} "
+                f"{result.side}): peak {si(s.peak_force, 'N')}, {s.contact_losses} contact "
+                f"losses, max δ {si(s.max_indentation, 'm')}, dent {si(s.max_dent, 'm')}",
+                level="WARN" if s.contact_losses or s.max_dent > 0 else "INFO",
+            ),
+        )
         self.rec.reset_time()
         self._index_of[result.passage_id] = (index, stamp)
         self._index_of.move_to_end(result.passage_id)
@@ -376,16 +438,26 @@ class RerunRecording:
         index = self._passages
         self.rec.set_time(X_TIMELINE, sequence=index * SLOT_MM)
         self.rec.set_time(PASSAGE_TIMELINE, sequence=index)
-        self.rec.log(self.entities["passages"], rr.TextLog(
-            f"#{index} {passage_id}: not drawn, the recorder was {behind_bytes / 2**20:.0f} MB "
-            "behind (the MCAP log has it)", level="WARN"))
+        self.rec.log(
+            self.entities["passages"],
+            rr.TextLog(
+                f"#{index} {passage_id}: not drawn, the recorder was {behind_bytes / 2**20:.0f} MB "
+                "behind (the MCAP log has it)",
+                level="WARN",
+            ),
+        )
         self.rec.reset_time()
         self._passages += 1
         self._in_part += 1
 
     def log_diagnosis(
-        self, diag: Diagnosis, t: NDArray[np.float64], measured: NDArray[np.float64],
-        fitted: NDArray[np.float64], x: NDArray[np.float64], impacts_x: NDArray[np.float64],
+        self,
+        diag: Diagnosis,
+        t: NDArray[np.float64],
+        measured: NDArray[np.float64],
+        fitted: NDArray[np.float64],
+        x: NDArray[np.float64],
+        impacts_x: NDArray[np.float64],
     ) -> None:
         """Measured vs fitted force (N) along the site, the impacts and the verdict.
 
@@ -408,31 +480,40 @@ class RerunRecording:
 
         def indexes(positions: NDArray[np.float64]) -> list[rr.TimeColumn]:
             n = len(positions)
-            cols = [rr.TimeColumn(DIAGNOSIS_X_TIMELINE, sequence=x_index(positions, d)),
-                    rr.TimeColumn(DIAGNOSIS_TIMELINE, sequence=np.full(n, d, dtype=np.int64))]
+            cols = [
+                rr.TimeColumn(DIAGNOSIS_X_TIMELINE, sequence=x_index(positions, d)),
+                rr.TimeColumn(DIAGNOSIS_TIMELINE, sequence=np.full(n, d, dtype=np.int64)),
+            ]
             if index is not None:
-                cols += [rr.TimeColumn(X_TIMELINE, sequence=x_index(positions, index)),
-                         rr.TimeColumn(PASSAGE_TIMELINE,
-                                       sequence=np.full(n, index, dtype=np.int64))]
+                cols += [
+                    rr.TimeColumn(X_TIMELINE, sequence=x_index(positions, index)),
+                    rr.TimeColumn(PASSAGE_TIMELINE, sequence=np.full(n, index, dtype=np.int64)),
+                ]
             if stamp is not None:
-                cols += [rr.TimeColumn(PASSAGE_TIME_TIMELINE, timestamp=np.full(n, stamp)),
-                         rr.TimeColumn(TIME_TIMELINE, timestamp=stamp + positions / speed)]
+                cols += [
+                    rr.TimeColumn(PASSAGE_TIME_TIMELINE, timestamp=np.full(n, stamp)),
+                    rr.TimeColumn(TIME_TIMELINE, timestamp=stamp + positions / speed),
+                ]
             return cols
 
         at = indexes(x)
-        self.rec.send_columns(e["measured"], indexes=at,
-                              columns=rr.Scalars.columns(scalars=measured))
-        self.rec.send_columns(e["fit"], indexes=at,
-                              columns=rr.Scalars.columns(scalars=fitted))
+        self.rec.send_columns(
+            e["measured"], indexes=at, columns=rr.Scalars.columns(scalars=measured)
+        )
+        self.rec.send_columns(e["fit"], indexes=at, columns=rr.Scalars.columns(scalars=fitted))
         if len(impacts_x) and len(x):
             order = np.argsort(x)
             f = np.interp(impacts_x, x[order], fitted[order])
-            self.rec.send_columns(e["impacts"], indexes=indexes(impacts_x),
-                                  columns=rr.Scalars.columns(scalars=f))
+            self.rec.send_columns(
+                e["impacts"], indexes=indexes(impacts_x), columns=rr.Scalars.columns(scalars=f)
+            )
         flat = diag.flat
-        what = (f"{flat.kind} {si(flat.length, 'm')} "
-                f"[{si(flat.length_low, 'm')}, {si(flat.length_high, 'm')}]"
-                if flat is not None else "no flat")
+        what = (
+            f"{flat.kind} {si(flat.length, 'm')} "
+            f"[{si(flat.length_low, 'm')}, {si(flat.length_high, 'm')}]"
+            if flat is not None
+            else "no flat"
+        )
         self.rec.set_time(DIAGNOSIS_X_TIMELINE, sequence=d * SLOT_MM)
         self.rec.set_time(DIAGNOSIS_TIMELINE, sequence=d)
         if index is not None:
@@ -441,12 +522,15 @@ class RerunRecording:
         if stamp is not None:
             self.rec.set_time(PASSAGE_TIME_TIMELINE, timestamp=stamp)
             self.rec.set_time(TIME_TIMELINE, timestamp=stamp)
-        self.rec.log(e["verdict"], rr.TextLog(
-            f"{diag.passage_id}: {diag.verdict.upper()}, {what}, measured peak "
-            f"{si(diag.peak_force_measured, 'N')}, fit peak {si(diag.peak_force_fit, 'N')}"
-            + (f"; {'; '.join(diag.reasons)}" if diag.reasons else ""),
-            level=VERDICT_LEVELS[diag.verdict],
-        ))
+        self.rec.log(
+            e["verdict"],
+            rr.TextLog(
+                f"{diag.passage_id}: {diag.verdict.upper()}, {what}, measured peak "
+                f"{si(diag.peak_force_measured, 'N')}, fit peak {si(diag.peak_force_fit, 'N')}"
+                + (f"; {'; '.join(diag.reasons)}" if diag.reasons else ""),
+                level=VERDICT_LEVELS[diag.verdict],
+            ),
+        )
         self.rec.reset_time()
         self._diagnoses += 1
         self._in_part += 1

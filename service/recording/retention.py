@@ -52,7 +52,11 @@ def _series(path: Path) -> tuple[str, str, int]:
 
 
 def enforce_retention(
-    directory: Path, keep_bytes: int, protect: str, *, recent_s: float = RECENT_S,
+    directory: Path,
+    keep_bytes: int,
+    protect: str,
+    *,
+    recent_s: float = RECENT_S,
     now: float | None = None,
 ) -> list[Path]:
     """Delete the oldest recordings until at most ``keep_bytes`` remain; returns those deleted.

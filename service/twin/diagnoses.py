@@ -71,13 +71,19 @@ def parse_since(text: str | None) -> float:
 class DiagnosisStore:
     """The diagnoses made by one twin; thread-safe (the worker adds, Zenoh queries)."""
 
-    def __init__(self, path: Path | None, *, keep_seconds: float = DEFAULT_KEEP_SECONDS,
-                 max_rows: int = DEFAULT_MAX_ROWS) -> None:
+    def __init__(
+        self,
+        path: Path | None,
+        *,
+        keep_seconds: float = DEFAULT_KEEP_SECONDS,
+        max_rows: int = DEFAULT_MAX_ROWS,
+    ) -> None:
         self.path = path
         if path is not None:
             path.parent.mkdir(parents=True, exist_ok=True)
-        self._db = sqlite3.connect(":memory:" if path is None else path, isolation_level=None,
-                                   check_same_thread=False)
+        self._db = sqlite3.connect(
+            ":memory:" if path is None else path, isolation_level=None, check_same_thread=False
+        )
         if path is not None:
             self._db.execute("PRAGMA journal_mode=WAL")
             self._db.execute("PRAGMA synchronous=NORMAL")
@@ -87,12 +93,13 @@ class DiagnosisStore:
         self.max_rows = max_rows
         self._added = 0
 
-    def add(self, passage_id: str, *, made_at: float, timestamp: float | None,
-            data: bytes) -> None:
+    def add(self, passage_id: str, *, made_at: float, timestamp: float | None, data: bytes) -> None:
         """Keep one diagnosis (its JSON); a passage diagnosed again replaces the former."""
         with self._lock:
-            self._db.execute("INSERT OR REPLACE INTO diagnoses VALUES (?, ?, ?, ?)",
-                             (passage_id, made_at, timestamp, data))
+            self._db.execute(
+                "INSERT OR REPLACE INTO diagnoses VALUES (?, ?, ?, ?)",
+                (passage_id, made_at, timestamp, data),
+            )
             self._added += 1
             if self._added % PRUNE_EVERY == 0:
                 self._prune(made_at)
@@ -101,7 +108,9 @@ class DiagnosisStore:
         self._db.execute("DELETE FROM diagnoses WHERE made_at < ?", (now - self.keep_seconds,))
         self._db.execute(
             "DELETE FROM diagnoses WHERE passage_id IN (SELECT passage_id FROM diagnoses "
-            "ORDER BY made_at DESC LIMIT -1 OFFSET ?)", (self.max_rows,))
+            "ORDER BY made_at DESC LIMIT -1 OFFSET ?)",
+            (self.max_rows,),
+        )
 
     def since(self, since: float, limit: int = MAX_REPLIES) -> list[tuple[str, bytes]]:
         """(passage_id, JSON) of the diagnoses made, or of passages, at or after ``since``;
@@ -109,7 +118,9 @@ class DiagnosisStore:
         with self._lock:
             rows = self._db.execute(
                 "SELECT passage_id, data FROM diagnoses WHERE made_at >= ? OR timestamp >= ? "
-                "ORDER BY made_at, passage_id LIMIT ?", (since, since, limit)).fetchall()
+                "ORDER BY made_at, passage_id LIMIT ?",
+                (since, since, limit),
+            ).fetchall()
         return [(str(pid), bytes(data)) for pid, data in rows]
 
     def count(self) -> int:

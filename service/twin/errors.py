@@ -13,18 +13,33 @@ from schemas.messages import ErrorKind, FieldProblem, ServiceError, WheelPassage
 from service.wire import limits
 
 
-def service_error(site_id: str, kind: ErrorKind, message: str, *, received_at: float,
-                  field: str | None = None, passage_id: str | None = None,
-                  problems: list[FieldProblem] | None = None) -> ServiceError:
+def service_error(
+    site_id: str,
+    kind: ErrorKind,
+    message: str,
+    *,
+    received_at: float,
+    field: str | None = None,
+    passage_id: str | None = None,
+    problems: list[FieldProblem] | None = None,
+) -> ServiceError:
     """A ``ServiceError`` about an input received at ``received_at`` (UNIX s)."""
     return ServiceError(
-        site_id=site_id, kind=kind, message=message, field=field, problems=problems or [],
-        passage_id=passage_id, received_at=received_at,
+        site_id=site_id,
+        kind=kind,
+        message=message,
+        field=field,
+        problems=problems or [],
+        passage_id=passage_id,
+        received_at=received_at,
     )
 
 
 def service_error_from_validation(
-    exc: ValidationError, payload: bytes, site_id: str, received_at: float,
+    exc: ValidationError,
+    payload: bytes,
+    site_id: str,
+    received_at: float,
     model: type[BaseModel] = WheelPassage,
 ) -> ServiceError:
     """A ServiceError naming the offending fields of a payload that is not a ``model``
@@ -35,7 +50,7 @@ def service_error_from_validation(
         raw = None
     problems = []
     errors = exc.errors(include_url=False)
-    for e in errors[:limits.MAX_PROBLEMS]:  # paths and messages clipped: inputs are not echoed
+    for e in errors[: limits.MAX_PROBLEMS]:  # paths and messages clipped: inputs are not echoed
         path = limits.clip(format_path(tuple(e["loc"]), raw, e.get("ctx")))
         ctx = e.get("ctx") or {}
         custom = e["type"] == "invalid_field" and "reason" in ctx
@@ -52,7 +67,11 @@ def service_error_from_validation(
     invalid: ErrorKind = "invalid_measurement" if measurement else "invalid_passage"
     what = "measurement" if measurement else "passage"
     return service_error(
-        site_id, "invalid_json" if invalid_json else invalid,
-        f"{what} rejected, {head}: {detail}{more}", received_at=received_at,
-        field=field_name, problems=problems, passage_id=limits.valid_id(passage_id),
+        site_id,
+        "invalid_json" if invalid_json else invalid,
+        f"{what} rejected, {head}: {detail}{more}",
+        received_at=received_at,
+        field=field_name,
+        problems=problems,
+        passage_id=limits.valid_id(passage_id),
     )

@@ -68,17 +68,20 @@ class Intake:
         if self.journal is not None:  # on disk before it is queued (survives kill -9)
             raw = sample.payload.to_bytes()
             ticket = self.journal.append(
-                key, received_ns, raw if too_large is None else raw[:LOGGED_PREFIX_BYTES])
+                key, received_ns, raw if too_large is None else raw[:LOGGED_PREFIX_BYTES]
+            )
         what = "measurement" if measured else "passage"
         if too_large is not None:  # refused unread: only its first bytes are logged
             head = sample.payload.to_bytes()[:LOGGED_PREFIX_BYTES]
             item = Inbound(key, head, received_ns, received_mono, ticket)
             self.output.log_input(item, None, payload_bytes=len(sample.payload))
             self.output.error(
-                item, "invalid_measurement" if measured else "invalid_passage",
+                item,
+                "invalid_measurement" if measured else "invalid_passage",
                 f"{what} rejected: {too_large}",
                 problems=[FieldProblem(field="", message=too_large, type="payload_too_large")],
-                passage_id=limits.peek_passage_id(head))
+                passage_id=limits.peek_passage_id(head),
+            )
             return
         item = Inbound(key, sample.payload.to_bytes(), received_ns, received_mono, ticket)
         try:
@@ -86,8 +89,11 @@ class Intake:
         except queue.Full:
             self.output.log_input(item, None)
             self.output.error(
-                item, "overloaded", f"{what} dropped: {self.capacity} inputs already waiting",
-                passage_id=limits.peek_passage_id(item.payload))
+                item,
+                "overloaded",
+                f"{what} dropped: {self.capacity} inputs already waiting",
+                passage_id=limits.peek_passage_id(item.payload),
+            )
 
 
 def refused_unread(output: Output, item: Inbound, measured: bool) -> bool:
@@ -98,9 +104,16 @@ def refused_unread(output: Output, item: Inbound, measured: bool) -> bool:
     output.log_input(item, None)
     what = "measurement" if measured else "passage"
     error_type, message = problem
-    kind: ErrorKind = "invalid_json" if error_type == "json_too_deep" else (
-        "invalid_measurement" if measured else "invalid_passage")
-    output.error(item, kind, f"{what} rejected before it was read: {message}",
-                 problems=[FieldProblem(field="", message=message, type=error_type)],
-                 passage_id=limits.peek_passage_id(item.payload))
+    kind: ErrorKind = (
+        "invalid_json"
+        if error_type == "json_too_deep"
+        else ("invalid_measurement" if measured else "invalid_passage")
+    )
+    output.error(
+        item,
+        kind,
+        f"{what} rejected before it was read: {message}",
+        problems=[FieldProblem(field="", message=message, type=error_type)],
+        passage_id=limits.peek_passage_id(item.payload),
+    )
     return True

@@ -34,8 +34,9 @@ class KeptPassages(Generic[T]):
 
     def __init__(self, max_count: int = KEPT_PASSAGES, max_bytes: int = KEPT_PASSAGE_BYTES) -> None:
         if max_count < 1 or max_bytes < 0:
-            raise ValueError(f"max_count must be >= 1 and max_bytes >= 0, not {max_count} and "
-                             f"{max_bytes}")
+            raise ValueError(
+                f"max_count must be >= 1 and max_bytes >= 0, not {max_count} and {max_bytes}"
+            )
         self.max_count = max_count
         self.max_bytes = max_bytes
         self.bytes = 0
@@ -48,8 +49,9 @@ class KeptPassages(Generic[T]):
             self.bytes -= old[1]
         self._kept[passage_id] = (passage, nbytes)
         self.bytes += nbytes
-        while len(self._kept) > self.max_count or (self.bytes > self.max_bytes
-                                                   and len(self._kept) > 1):
+        while len(self._kept) > self.max_count or (
+            self.bytes > self.max_bytes and len(self._kept) > 1
+        ):
             _, (_, gone) = self._kept.popitem(last=False)
             self.bytes -= gone
 

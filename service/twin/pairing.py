@@ -53,10 +53,16 @@ class _Waiting:
 class Pairing:
     """Pairs measurements with passages and diagnoses them (on the twin's worker thread)."""
 
-    def __init__(self, site: SiteConfig, output: Output, physics: PhysicsPort,
-                 passages: KeptPassages[WheelPassage], *,
-                 before_diagnosis: Callable[[], None] = lambda: None,
-                 diagnoses: DiagnosisStore | None = None) -> None:
+    def __init__(
+        self,
+        site: SiteConfig,
+        output: Output,
+        physics: PhysicsPort,
+        passages: KeptPassages[WheelPassage],
+        *,
+        before_diagnosis: Callable[[], None] = lambda: None,
+        diagnoses: DiagnosisStore | None = None,
+    ) -> None:
         self.site = site
         # what catch-up queries are answered from (in memory when the caller keeps no state)
         self.diagnoses = diagnoses if diagnoses is not None else DiagnosisStore(None)
@@ -74,8 +80,14 @@ class Pairing:
             return None
         return next(iter(self._waiting.values())).deadline
 
-    def _error(self, item: Inbound, kind: MeasurementErrorKind, message: str, passage_id: str,
-               field_name: str | None = None) -> None:
+    def _error(
+        self,
+        item: Inbound,
+        kind: MeasurementErrorKind,
+        message: str,
+        passage_id: str,
+        field_name: str | None = None,
+    ) -> None:
         self.output.error(item, kind, message, field=field_name, passage_id=passage_id)
 
     def serve(self, item: Inbound) -> None:
@@ -87,20 +99,31 @@ class Pairing:
             measured = MeasuredPassage.model_validate_json(item.payload)
         except ValidationError as exc:
             out.log_input(item, None)
-            out.publish_error(service_error_from_validation(
-                exc, item.payload, self.site.site_id, item.received_at, MeasuredPassage))
+            out.publish_error(
+                service_error_from_validation(
+                    exc, item.payload, self.site.site_id, item.received_at, MeasuredPassage
+                )
+            )
             return
         out.log_input(item, measured)
         pid = measured.passage_id
         if not self.physics.diagnoses:
             self._error(
-                item, "simulation_failed", f"measurement of {pid} not diagnosed: diagnosis is "
-                "unavailable (it needs the site's own physics, --physics sim_core)", pid)
+                item,
+                "simulation_failed",
+                f"measurement of {pid} not diagnosed: diagnosis is "
+                "unavailable (it needs the site's own physics, --physics sim_core)",
+                pid,
+            )
             return
         if pid in self._diagnosed or pid in self._waiting:
             self._error(
-                item, "invalid_measurement", f"measurement of {pid} dropped: duplicate (the "
-                "passage already has a measurement)", pid, "passage_id")
+                item,
+                "invalid_measurement",
+                f"measurement of {pid} dropped: duplicate (the passage already has a measurement)",
+                pid,
+                "passage_id",
+            )
             return
         passage = self.passages.get(pid)
         if passage is not None:
@@ -111,8 +134,12 @@ class Pairing:
         while len(self._waiting) > MAX_WAITING_MEASUREMENTS:
             old_pid, old = self._waiting.popitem(last=False)
             self._error(
-                old.item, "unpaired", f"measurement of {old_pid} dropped: its passage has not "
-                f"come and {MAX_WAITING_MEASUREMENTS} measurements are waiting", old_pid)
+                old.item,
+                "unpaired",
+                f"measurement of {old_pid} dropped: its passage has not "
+                f"come and {MAX_WAITING_MEASUREMENTS} measurements are waiting",
+                old_pid,
+            )
 
     def passage_came(self, passage: WheelPassage) -> None:
         """A passage was simulated: diagnose the measurement waiting for it, if one is."""
@@ -130,8 +157,12 @@ class Pairing:
                 return
             del self._waiting[pid]
             self._error(
-                first.item, "unpaired", f"measurement of {pid} not diagnosed: no passage "
-                f"{pid} within the pairing timeout of {timeout:g} s", pid)
+                first.item,
+                "unpaired",
+                f"measurement of {pid} not diagnosed: no passage "
+                f"{pid} within the pairing timeout of {timeout:g} s",
+                pid,
+            )
 
     def _diagnose(self, passage: WheelPassage, measured: MeasuredPassage, item: Inbound) -> None:
         pid = passage.passage_id
@@ -139,21 +170,26 @@ class Pairing:
         try:
             outcome = self.physics.diagnose(passage, measured)
         except MeasurementError as exc:
-            self._error(item, "invalid_measurement", f"measurement of {pid} rejected: {exc}",
-                        pid, exc.field)
+            self._error(
+                item, "invalid_measurement", f"measurement of {pid} rejected: {exc}", pid, exc.field
+            )
             return
         except (BudgetExceededError, WorkerCrashedError) as exc:
             self._error(item, "simulation_failed", str(exc), pid)
             return
         except Exception as exc:  # never let one diagnosis kill the service
             self._error(
-                item, "simulation_failed",
-                f"measurement of {pid} could not be diagnosed: {type(exc).__name__}: {exc}", pid)
+                item,
+                "simulation_failed",
+                f"measurement of {pid} could not be diagnosed: {type(exc).__name__}: {exc}",
+                pid,
+            )
             return
         # the wheel and the passage's time, whatever the diagnoser filled in (the fleet files
         # each diagnosis under its wheel, site and date)
         diag = outcome.diagnosis.model_copy(
-            update={"wheel": passage.wheel, "timestamp": passage.timestamp})
+            update={"wheel": passage.wheel, "timestamp": passage.timestamp}
+        )
         self._diagnosed[pid] = None  # a refused measurement may be sent again, corrected
         while len(self._diagnosed) > KEPT_DIAGNOSED:
             self._diagnosed.popitem(last=False)
@@ -164,5 +200,6 @@ class Pairing:
         self.done += 1
         recorder = self.output.recorder
         if recorder is not None:
-            recorder.diagnosis(diag, outcome.t, outcome.measured, outcome.fitted, outcome.x,
-                               outcome.impacts_x)
+            recorder.diagnosis(
+                diag, outcome.t, outcome.measured, outcome.fitted, outcome.x, outcome.impacts_x
+            )

@@ -48,9 +48,17 @@ _Entry = tuple[Inbound, WheelPassage, "Future[Simulated]"]
 class Simulation:
     """The passages' way through the twin, from a queued input to a published result."""
 
-    def __init__(self, site: SiteConfig, output: Output, physics: PhysicsPort,
-                 passages: KeptPassages[WheelPassage], *, pace: Pace = "fast",
-                 chunk_period: float = 0.02, pacer: Pacer | None = None) -> None:
+    def __init__(
+        self,
+        site: SiteConfig,
+        output: Output,
+        physics: PhysicsPort,
+        passages: KeptPassages[WheelPassage],
+        *,
+        pace: Pace = "fast",
+        chunk_period: float = 0.02,
+        pacer: Pacer | None = None,
+    ) -> None:
         if pace == "realtime" and pacer is None:
             raise ValueError("realtime pacing needs a Pacer")
         self.site = site
@@ -63,9 +71,11 @@ class Simulation:
         self.done = 0
         self._inflight = threading.Semaphore(2 * physics.size)
         self._ordered: queue.Queue[_Entry | _Stop] = queue.Queue()
-        self._publisher = (threading.Thread(target=self._publish_in_order,
-                                            name="railtwin-publisher", daemon=True)
-                           if physics.concurrent else None)
+        self._publisher = (
+            threading.Thread(target=self._publish_in_order, name="railtwin-publisher", daemon=True)
+            if physics.concurrent
+            else None
+        )
 
     def start(self) -> None:
         if self._publisher is not None:
@@ -94,18 +104,24 @@ class Simulation:
             passage = WheelPassage.model_validate_json(item.payload)
         except ValidationError as exc:
             out.log_input(item, None)
-            out.publish_error(service_error_from_validation(
-                exc, item.payload, self.site.site_id, item.received_at))
+            out.publish_error(
+                service_error_from_validation(
+                    exc, item.payload, self.site.site_id, item.received_at
+                )
+            )
             return None
         problem = limits.passage_problem(self.site, passage)
         if problem is not None:  # valid, but more than this site may spend on one passage
             out.log_input(item, None)
             field_name, message = problem
-            out.error(item, "invalid_passage",
-                      f"passage rejected, over a limit: {field_name}: {message}",
-                      field=field_name, passage_id=passage.passage_id,
-                      problems=[FieldProblem(field=field_name, message=message,
-                                             type="over_limit")])
+            out.error(
+                item,
+                "invalid_passage",
+                f"passage rejected, over a limit: {field_name}: {message}",
+                field=field_name,
+                passage_id=passage.passage_id,
+                problems=[FieldProblem(field=field_name, message=message, type="over_limit")],
+            )
             return None
         out.log_input(item, passage)
         if self._already_applied(item, passage):
@@ -124,11 +140,15 @@ class Simulation:
         if where is None:
             return False
         self.output.error(
-            item, "invalid_passage",
+            item,
+            "invalid_passage",
             f"passage_id {pid!r} was already received {where}: not applied twice",
-            field="passage_id", passage_id=pid,
-            problems=[FieldProblem(field="passage_id", message="duplicate passage id",
-                                   type="duplicate")])
+            field="passage_id",
+            passage_id=pid,
+            problems=[
+                FieldProblem(field="passage_id", message="duplicate passage id", type="duplicate")
+            ],
+        )
         return True
 
     # --- simulation and publication ----------------------------------------------------
@@ -153,9 +173,12 @@ class Simulation:
                 try:
                     self._finish(item, passage, future)
                 except Exception as exc:  # never let one passage kill the service
-                    self.output.error(item, "simulation_failed",
-                                      f"internal error: {type(exc).__name__}: {exc}",
-                                      passage_id=passage.passage_id)
+                    self.output.error(
+                        item,
+                        "simulation_failed",
+                        f"internal error: {type(exc).__name__}: {exc}",
+                        passage_id=passage.passage_id,
+                    )
                 finally:
                     self._inflight.release()
             finally:
@@ -170,8 +193,12 @@ class Simulation:
             self.output.error(item, "simulation_failed", str(exc), passage_id=pid)
             return
         except (ValueError, ArithmeticError, ValidationError) as exc:
-            self.output.error(item, "simulation_failed",
-                              f"passage {pid} could not be simulated: {exc}", passage_id=pid)
+            self.output.error(
+                item,
+                "simulation_failed",
+                f"passage {pid} could not be simulated: {exc}",
+                passage_id=pid,
+            )
             return
         result = done.result
         result_data = self._publish_result(result, item.received_mono, done.data, done.series)
@@ -182,8 +209,13 @@ class Simulation:
             if result.summary.max_dent > 0.0:
                 recorder.dent(result.passage_id, done.rail_after or self.physics.rail_state())
 
-    def _publish_result(self, r: PassageResult, received_mono: float,
-                        result_data: bytes | None = None, series: Series | None = None) -> bytes:
+    def _publish_result(
+        self,
+        r: PassageResult,
+        received_mono: float,
+        result_data: bytes | None = None,
+        series: Series | None = None,
+    ) -> bytes:
         """Publish (or schedule) the series and the result; returns the result's JSON.
 
         ``series``: the force and indentation series' JSON made by the worker (fast pacing);
@@ -196,8 +228,10 @@ class Simulation:
             result_data = r.model_dump_json().encode()
         if series is None and self.pace == "fast":
             n = len(r.x)
-            series = (series_json(r, "force", 0, n, 0, 1),
-                      series_json(r, "indentation", 0, n, 0, 1))
+            series = (
+                series_json(r, "force", 0, n, 0, 1),
+                series_json(r, "indentation", 0, n, 0, 1),
+            )
         if series is not None:
             put(k.force(pid), f"{k.prefix}/force", PassageSeries, series[0], at)
             put(k.indentation(pid), f"{k.prefix}/indentation", PassageSeries, series[1], at)
@@ -213,8 +247,10 @@ class Simulation:
             due = received_mono + (last - 1) / r.sample_rate
             for quantity in quantities:
                 key = k.force(pid) if quantity == "force" else k.indentation(pid)
-                self.pacer.schedule(due, key, PassageSeries,
-                                    series_json(r, quantity, first, last, c, chunks))
-        self.pacer.schedule(received_mono + r.site_length / r.speed, k.result(pid),
-                            PassageResult, result_data)
+                self.pacer.schedule(
+                    due, key, PassageSeries, series_json(r, quantity, first, last, c, chunks)
+                )
+        self.pacer.schedule(
+            received_mono + r.site_length / r.speed, k.result(pid), PassageResult, result_data
+        )
         return result_data

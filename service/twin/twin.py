@@ -80,10 +80,23 @@ class Twin:
         self.intake = Intake(self.output, journal, queue_capacity)
         self.pacer = Pacer(self.output) if pace == "realtime" else None
         passages: KeptPassages[WheelPassage] = KeptPassages()
-        self.simulation = Simulation(site, self.output, physics, passages, pace=pace,
-                                     chunk_period=chunk_period, pacer=self.pacer)
-        self.pairing = Pairing(site, self.output, physics, passages,
-                               before_diagnosis=self.simulation.drain, diagnoses=diagnoses)
+        self.simulation = Simulation(
+            site,
+            self.output,
+            physics,
+            passages,
+            pace=pace,
+            chunk_period=chunk_period,
+            pacer=self.pacer,
+        )
+        self.pairing = Pairing(
+            site,
+            self.output,
+            physics,
+            passages,
+            before_diagnosis=self.simulation.drain,
+            diagnoses=diagnoses,
+        )
         self.diagnoses = self.pairing.diagnoses
         self.started_at = time.time()
         self._started_mono = time.monotonic()
@@ -113,8 +126,9 @@ class Twin:
         self._declared = [
             s.declare_queryable(self.keys.rail, self._on_rail_query),
             s.declare_queryable(HEALTH_KEY, lambda q: self._on_health_query(q, HEALTH_KEY)),
-            s.declare_queryable(self.keys.health,
-                                lambda q: self._on_health_query(q, self.keys.health)),
+            s.declare_queryable(
+                self.keys.health, lambda q: self._on_health_query(q, self.keys.health)
+            ),
             s.declare_queryable(self.keys.diagnoses, self._on_diagnoses_query),
             s.declare_subscriber(self.keys.passage, self.intake.on_passage),
             s.declare_subscriber(self.keys.measured, self.intake.on_measured),
@@ -156,8 +170,9 @@ class Twin:
                 try:
                     self.serve(item)
                 except Exception as exc:  # never let one input kill the service
-                    self.output.error(item, "simulation_failed",
-                                      f"internal error: {type(exc).__name__}: {exc}")
+                    self.output.error(
+                        item, "simulation_failed", f"internal error: {type(exc).__name__}: {exc}"
+                    )
             self.pairing.expire()
 
     def _too_late(self, item: Inbound) -> bool:
@@ -165,8 +180,9 @@ class Twin:
         if self._stop_by is None or time.monotonic() < self._stop_by:
             return False
         what = "measurement" if item.key == self.keys.measured else "passage"
-        self.output.error(item, "overloaded",
-                          f"{what} dropped: the service stopped before its turn came")
+        self.output.error(
+            item, "overloaded", f"{what} dropped: the service stopped before its turn came"
+        )
         return True
 
     def serve(self, item: Inbound) -> None:
@@ -210,25 +226,33 @@ class Twin:
                     f"{self.keys.diagnoses}: each diagnosis is answered on its own key "
                     f"{self.keys.diagnosis('<passage_id>')}: query with "
                     "accept_replies=zenoh.ReplyKeyExpr.ANY (or add the parameter _anyke: "
-                    "?since=T;_anyke)")
+                    "?since=T;_anyke)"
+                )
                 return
             rows = self.diagnoses.since(since, limit=MAX_REPLIES)
             for pid, data in rows:
-                query.reply(self.keys.diagnosis(pid), data,
-                            encoding=self.output.encodings[Diagnosis])
+                query.reply(
+                    self.keys.diagnosis(pid), data, encoding=self.output.encodings[Diagnosis]
+                )
             if len(rows) >= MAX_REPLIES:  # the oldest first: the querier asks again from there
-                query.reply_err(f"{self.keys.diagnoses}: answer cut at {MAX_REPLIES} diagnoses "
-                                "(the oldest made first): ask again with a later since")
+                query.reply_err(
+                    f"{self.keys.diagnoses}: answer cut at {MAX_REPLIES} diagnoses "
+                    "(the oldest made first): ask again with a later since"
+                )
 
     def health(self) -> Health:
         mcap_path = self.recorder.mcap_path() if self.recorder is not None else None
         rrd_path = self.recorder.rrd_path() if self.recorder is not None else None
         return Health(
-            site_id=self.site.site_id, started_at=self.started_at,
+            site_id=self.site.site_id,
+            started_at=self.started_at,
             uptime=time.monotonic() - self._started_mono,
-            passages_received=self.intake.passages_received, passages_done=self.passages_done,
-            errors=self.output.errors, queue_depth=self.intake.queue.qsize(),
-            queue_capacity=self.intake.capacity, last_error=self.output.last_error,
+            passages_received=self.intake.passages_received,
+            passages_done=self.passages_done,
+            errors=self.output.errors,
+            queue_depth=self.intake.queue.qsize(),
+            queue_capacity=self.intake.capacity,
+            last_error=self.output.last_error,
             mcap_path=mcap_path,
             rrd_path=rrd_path,
         )

@@ -24,14 +24,24 @@ def json_encoding(model: type[BaseModel]) -> zenoh.Encoding:
     return zenoh.Encoding.APPLICATION_JSON.with_schema(encoding_schema(model))
 
 
-def series_json(r: PassageResult, quantity: Quantity, first: int, last: int, chunk: int,
-                chunks: int) -> bytes:
+def series_json(
+    r: PassageResult, quantity: Quantity, first: int, last: int, chunk: int, chunks: int
+) -> bytes:
     """Samples ``first:last`` of one quantity of ``r`` as a ``PassageSeries`` (JSON)."""
     values = r.force if quantity == "force" else r.indentation
     msg = PassageSeries.model_construct(
-        site_id=r.site_id, passage_id=r.passage_id, quantity=quantity,
-        unit="N" if quantity == "force" else "m", sample_rate=r.sample_rate,
-        t_start=r.t_start, speed=r.speed, chunk=chunk, chunks=chunks, first_index=first,
-        samples=len(r.x), x=r.x[first:last], values=values[first:last],
+        site_id=r.site_id,
+        passage_id=r.passage_id,
+        quantity=quantity,
+        unit="N" if quantity == "force" else "m",
+        sample_rate=r.sample_rate,
+        t_start=r.t_start,
+        speed=r.speed,
+        chunk=chunk,
+        chunks=chunks,
+        first_index=first,
+        samples=len(r.x),
+        x=r.x[first:last],
+        values=values[first:last],
     )
     return msg.model_dump_json().encode()

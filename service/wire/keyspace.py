@@ -1,14 +1,14 @@
 """The Zenoh key space of one site (see ``schemas.messages`` for the payloads).
 
-    >>> k = SiteKeys("km12")
-    >>> k.passage, k.force("t1-a0-r")
-    ('railtwin/km12/passage', 'railtwin/km12/force/t1-a0-r')
-    >>> k.rail, HEALTH_KEY
-    ('railtwin/km12/rail', 'railtwin/health')
-    >>> k.measured, k.diagnosis("t1-a0-r")
-    ('railtwin/km12/measured', 'railtwin/km12/diagnosis/t1-a0-r')
-    >>> k.diagnoses
-    'railtwin/km12/diagnoses'
+>>> k = SiteKeys("km12")
+>>> k.passage, k.force("t1-a0-r")
+('railtwin/km12/passage', 'railtwin/km12/force/t1-a0-r')
+>>> k.rail, HEALTH_KEY
+('railtwin/km12/rail', 'railtwin/health')
+>>> k.measured, k.diagnosis("t1-a0-r")
+('railtwin/km12/measured', 'railtwin/km12/diagnosis/t1-a0-r')
+>>> k.diagnoses
+'railtwin/km12/diagnoses'
 """
 
 from __future__ import annotations

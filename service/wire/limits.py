@@ -77,7 +77,8 @@ _STRING = re.compile(rb'"(?:[^"\\]|\\.)*"', re.DOTALL)
 _BRACKET_MAP = bytes.maketrans(b"[{]}", b"(())")
 _NOT_BRACKETS = bytes(sorted(set(range(256)) - set(b"[]{}")))
 _PASSAGE_ID = re.compile(
-    rb'"passage_id"\s*:\s*"([A-Za-z0-9_.\-]{1,' + str(MAX_ID_LENGTH).encode() + rb'})"')
+    rb'"passage_id"\s*:\s*"([A-Za-z0-9_.\-]{1,' + str(MAX_ID_LENGTH).encode() + rb'})"'
+)
 
 
 def valid_id(value: object) -> str | None:
@@ -141,7 +142,8 @@ def structure_problem(payload: bytes, limit: int = MAX_NESTING) -> tuple[str, st
     if len(payload) > MAX_PASSAGE_PAYLOAD_BYTES:
         return "too_many_brackets", (
             f"{count} brackets in a payload of {len(payload)} bytes: a MeasuredPassage has one "
-            "object and one array")
+            "object and one array"
+        )
     if nesting_too_deep(payload, limit):
         return "json_too_deep", f"JSON nested deeper than {limit} levels"
     return None
@@ -173,12 +175,14 @@ def passage_problem(site: SiteConfig, passage: WheelPassage) -> tuple[str, str] 
         return "speed", (
             f"speed {passage.speed:g} m/s would take {n} samples over the site "
             f"({site.length:g} m at {site.output_sample_rate:g} Hz), more than the "
-            f"{MAX_PASSAGE_SAMPLES} a passage may have; the speed must be above {floor:.6g} m/s here")
+            f"{MAX_PASSAGE_SAMPLES} a passage may have; the speed must be above {floor:.6g} m/s here"
+        )
     out = n * OUTPUT_BYTES_PER_SAMPLE
     if out > MAX_PASSAGE_OUTPUT_BYTES:
         return "speed", (
             f"speed {passage.speed:g} m/s would publish about {out} bytes ({n} samples), more "
-            f"than the {MAX_PASSAGE_OUTPUT_BYTES} bytes a passage may; XX")
+            f"than the {MAX_PASSAGE_OUTPUT_BYTES} bytes a passage may; XX"
+        )
     return None
 
 
@@ -186,6 +190,8 @@ def site_problem(site: SiteConfig) -> str | None:
     """Why a (resolved) site cannot be served, or None: its rail's points (a file rail too)."""
     x = getattr(site.rail, "x", None)
     if x is not None and len(x) > MAX_RAIL_POINTS:
-        return (f"rail: {len(x)} points, more than the {MAX_RAIL_POINTS} a site's rail may have "
-                "(resample the profile)")
+        return (
+            f"rail: {len(x)} points, more than the {MAX_RAIL_POINTS} a site's rail may have "
+            "(resample the profile)"
+        )
     return None

@@ -239,7 +239,9 @@ def _second_derivatives(
     """G'' at the left and right ends of Hermite piece i (it is linear in between)."""
     r = 1.0 / (x[i + 1] - x[i])
     d = (y[i + 1] - y[i]) * r
-    return (6.0 * d - 4.0 * sr[i] - 2.0 * sl[i + 1]) * r, (-6.0 * d + 2.0 * sr[i] + 4.0 * sl[i + 1]) * r
+    return (6.0 * d - 4.0 * sr[i] - 2.0 * sl[i + 1]) * r, (
+        -6.0 * d + 2.0 * sr[i] + 4.0 * sl[i + 1]
+    ) * r
 
 
 @numba.njit(cache=True)

@@ -532,7 +532,6 @@ for a template to start from steady rolling (1 %: a 10·P impact leaves 0.1·P, 
 times the sensor noise)."""
 
 
-
 def slowest_decay(wheel: WheelOnSite, zeta: float) -> float:
     """1/s: the smallest decay rate of the linearised wheel on its foundation damped to
     ``zeta`` (the contact linearised at the static load); inf on a rigid foundation, whose
@@ -742,8 +741,15 @@ def _dismissed(
     if deviation <= 0.0:
         return True
     prob = _Problem(
-        wheel, speed, sensor, sensor.fine_rate(rate), np.zeros(0), np.zeros(0), [],
-        np.zeros(0), RailTables(RailProfile.flat()),
+        wheel,
+        speed,
+        sensor,
+        sensor.fine_rate(rate),
+        np.zeros(0),
+        np.zeros(0),
+        [],
+        np.zeros(0),
+        RailTables(RailProfile.flat()),
     )
     floor = detection_floor(speed, options)
     smallest = min(
@@ -814,8 +820,23 @@ def estimate_flat(
     ):
         cost = float(np.sum((_clip(f, P) - _clip(base, P)) ** 2))
         return FlatEstimate(
-            None, None, 0.0, 0.0, 0.0, cost, cost, int(f.size), 0.0, 0.0, speed, zetas[-1],
-            (), (), time.perf_counter() - start, noise_level=noise, screened=True,
+            None,
+            None,
+            0.0,
+            0.0,
+            0.0,
+            cost,
+            cost,
+            int(f.size),
+            0.0,
+            0.0,
+            speed,
+            zetas[-1],
+            (),
+            (),
+            time.perf_counter() - start,
+            noise_level=noise,
+            screened=True,
         )
     anchors = find_anchors(t, f, P, R, speed)
     v = speed
@@ -932,9 +953,7 @@ def estimate_flat(
         k_lo, k_hi = _interval(points, j_max, cand.length)
         lo, hi = min(lo, k_lo), max(hi, k_hi)
         interval_kinds.append(cand.kind)
-    at_zeta = [
-        c for c in prob.evaluated.values() if c.zeta == best.zeta and c.depth_factor == 1.0
-    ]
+    at_zeta = [c for c in prob.evaluated.values() if c.zeta == best.zeta and c.depth_factor == 1.0]
     lo *= 1.0 - options.speed_uncertainty
     hi *= 1.0 + options.speed_uncertainty
     # the detection floor: above ~75 km/h a few µm of unknown roughness excite as much dynamic

@@ -130,7 +130,9 @@ def _butter(
 
 @numba.njit(cache=True, nogil=True)
 def _sosfilt(
-    sos: NDArray[np.float64], zi: NDArray[np.float64], x: NDArray[np.float64],
+    sos: NDArray[np.float64],
+    zi: NDArray[np.float64],
+    x: NDArray[np.float64],
     out: NDArray[np.float64],
 ) -> None:
     """``out`` = the cascade of second-order sections applied to ``x`` from the states ``zi``
