@@ -1,6 +1,6 @@
 # railtwin: one entry point for humans and CI. Needs only python3 (3.11+), pip and make.
 #
-#   make test     venv + editable install with test extras, then ruff, mypy, pytest
+#   make test     venv + editable install with test extras, then ruff (check, format --check), mypy, pytest
 #   make warm     compile the physics into numba's cache, 2 processes (make venv runs it)
 #   make demo     start the twin on loopback, stream a sample train through it, print a line per wheel
 #   make bench    run the benchmarks (benchmarks/run_all.py)
@@ -50,6 +50,7 @@ warm: $(STAMP)
 
 ruff: $(STAMP)
 	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
 
 mypy: $(STAMP)
 	$(BIN)/mypy
@@ -63,6 +64,7 @@ pytest: $(STAMP)
 test: $(STAMP)
 	@failed=""; \
 	echo "== ruff =="; $(BIN)/ruff check . || failed="$$failed ruff"; \
+	echo "== ruff format =="; $(BIN)/ruff format --check . || failed="$$failed ruff-format"; \
 	echo "== mypy =="; $(BIN)/mypy || failed="$$failed mypy"; \
 	echo "== pytest =="; $(BIN)/python -m pytest -q || failed="$$failed pytest"; \
 	if [ -n "$$failed" ]; then echo "make test: FAILED:$$failed" >&2; exit 1; fi; \
