@@ -181,15 +181,15 @@ def fig4_scenario() -> Any:
 
 
 def fig4_cli_row(repeat: int = 5) -> dict[str, float | str]:
-    """The Fig. 4 case through the CLI's path (``service.scenario_runner.run_scenario``, as
+    """The Fig. 4 case through the CLI's path (``service.physics.scenario_runner.run_scenario``, as
     ``railtwin simulate`` runs each scenario of a batch: compiled code loaded, the table made
     per scenario), best of ``repeat`` (>= 1) of its own ``wall_time`` (tabulation, integration,
     summaries; not the JSON writing). Peers in the same run: the integration alone on the same
     table (``simulate_passage``), and the ψ-search's table of the same case (the path before
     the closed form). The trajectory is chaotic over 300 periods (MODEL.md §7): a table within
     1e-13 m of another takes a different number of steps; the steps are reported."""
-    from service.physics_inputs import contact_model
-    from service.scenario_runner import build_spec, run_scenario
+    from service.physics.inputs import contact_model
+    from service.physics.scenario_runner import build_spec, run_scenario
 
     scenario = fig4_scenario()
     run_scenario(scenario)  # warm

@@ -80,3 +80,22 @@ def test_markdown_has_every_section() -> None:
     }
     text = core_bench.markdown(res)
     assert "| tiny |" in text and "real-time factor" in text
+
+
+def test_every_benchmark_import_resolves() -> None:
+    """Each ``from railtwin-module import ...`` in benchmarks/ and validation/ names a module
+    that exists (a benchmark's lazy import of a moved module broke ``make bench`` once)."""
+    import ast
+    import importlib.util
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    ours = ("service", "sim_core", "schemas", "benchmarks", "validation")
+    missing = []
+    for path in [*root.glob("benchmarks/*.py"), *root.glob("validation/*.py")]:
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith(ours):
+                assert node.module is not None
+                if importlib.util.find_spec(node.module) is None:
+                    missing.append(f"{path.relative_to(root)}: {node.module}")
+    assert not missing, missing
