@@ -27,6 +27,7 @@ from service.physics.diagnosis import Diagnoser
 from sim_core.diagnosis.forward import Flat, damping_for_ratio
 from sim_core.diagnosis.synthetic import Perturbations, synthetic_measurement
 from sim_core.passage import Foundation
+from validation.wide_set import fitted_fields
 
 LINE_SPEED = 44.44
 
@@ -116,7 +117,6 @@ def run_case(i: int, rng: np.random.Generator) -> dict[str, Any]:
             Perturbations(noise_fraction=0.0, roughness_rms=rough, seed=seed),
         )
         line_truth = float(np.max(lm.force))
-    found = diag.flat
     return {
         "case": p.passage_id,
         "source": "own",
@@ -125,31 +125,10 @@ def run_case(i: int, rng: np.random.Generator) -> dict[str, Any]:
         "true_depth": tread.depth if tread else None,
         "speed_kmh": p.speed * 3.6,
         "true_damping_ratio": zeta,
-        "fitted_damping_ratio": curves.estimate.damping_ratio,
-        "found_kind": found.kind if found else None,
-        "found_length": found.length if found else 0.0,
-        "length_low": found.length_low if found else None,
-        "length_high": found.length_high if found else None,
-        "found_depth": found.depth if found else None,
-        "best_kind": curves.estimate.best_kind,
-        "best_length": curves.estimate.best_length,
-        "verdict": diag.verdict,
-        "reasons": diag.reasons,
-        "peak_measured": diag.peak_force_measured,
         "true_peak": m.true_peak_force,
-        "explained": diag.explained,
-        "noise_level": diag.noise_level,
         "true_noise": noise * p.load,
-        "fit_rms": diag.fit_rms,
         "line_truth": line_truth,
-        "line_point": diag.peak_force_at_line_speed,
-        "line_low": diag.peak_force_at_line_speed_low,
-        "line_high": diag.peak_force_at_line_speed_high,
-        "wall_time": diag.wall_time,
-        "fit_time": curves.estimate.wall_time,
-        "cpu_time": cpu,
-        "significance": curves.estimate.significance,
-        "contrast": curves.estimate.contrast,
+        **fitted_fields(diag, curves, cpu),
     }
 
 

@@ -18,10 +18,10 @@ from typing import Any
 
 import numpy as np
 
-from schemas.diagnosis import MeasuredPassage
+from schemas.diagnosis import Diagnosis, MeasuredPassage
 from schemas.messages import WheelPassage
 from schemas.site import SiteConfig
-from service.physics.diagnosis import Diagnoser
+from service.physics.diagnosis import Diagnoser, FitCurves
 from service.wire.site import load_site
 
 WIDE_DIR = Path(__file__).resolve().parent / "measured-wide"
@@ -84,40 +84,47 @@ def run_case(c: WideCase) -> dict[str, Any]:
     cpu = time.process_time() - cpu
     tr = c.truth
     kind = tr["kind"] or "round"
-    found = diag.flat
-    meta_speed = c.passage.speed
     return {
         "case": c.case_id,
         "source": "wide",
         "kind": kind,
         "true_length": float(tr["flat_length_m"] or 0.0),
         "true_depth": float(tr["flat_depth_m"]) if tr.get("flat_depth_m") else None,
-        "speed_kmh": meta_speed * 3.6,
+        "speed_kmh": c.passage.speed * 3.6,
         "true_damping_ratio": c.zeta,
-        "fitted_damping_ratio": curves.estimate.damping_ratio,
+        "true_peak": float(tr["true_F_max_in_site"]),
+        "line_truth": c.line_peak_measured,
+        **fitted_fields(diag, curves, cpu),
+    }
+
+
+def fitted_fields(diag: Diagnosis, curves: FitCurves, cpu: float) -> dict[str, Any]:
+    """The columns of a validation row that come from the diagnosis (both sources)."""
+    found = diag.flat
+    est = curves.estimate
+    return {
+        "fitted_damping_ratio": est.damping_ratio,
         "found_kind": found.kind if found else None,
         "found_length": found.length if found else 0.0,
         "length_low": found.length_low if found else None,
         "length_high": found.length_high if found else None,
         "found_depth": found.depth if found else None,
-        "best_kind": curves.estimate.best_kind,
-        "best_length": curves.estimate.best_length,
+        "best_kind": est.best_kind,
+        "best_length": est.best_length,
         "verdict": diag.verdict,
         "reasons": diag.reasons,
         "peak_measured": diag.peak_force_measured,
-        "true_peak": float(tr["true_F_max_in_site"]),
-        "explained": getattr(diag, "explained", None),
-        "noise_level": getattr(diag, "noise_level", None),
+        "explained": diag.explained,
+        "noise_level": diag.noise_level,
         "fit_rms": diag.fit_rms,
-        "line_truth": c.line_peak_measured,
         "line_point": diag.peak_force_at_line_speed,
-        "line_low": getattr(diag, "peak_force_at_line_speed_low", None),
-        "line_high": getattr(diag, "peak_force_at_line_speed_high", None),
+        "line_low": diag.peak_force_at_line_speed_low,
+        "line_high": diag.peak_force_at_line_speed_high,
         "wall_time": diag.wall_time,
-        "fit_time": curves.estimate.wall_time,
+        "fit_time": est.wall_time,
         "cpu_time": cpu,
-        "significance": curves.estimate.significance,
-        "contrast": curves.estimate.contrast,
+        "significance": est.significance,
+        "contrast": est.contrast,
     }
 
 
