@@ -694,6 +694,11 @@ def _run(
             tn = kinks[kp] / v
         elif jq >= 0:
             tn = jumps[jq] / v
+        if tn < t1 and t1 - tn < H_MIN:
+            # a sliver of round-off left before the end (a step ending on a kink or an
+            # event a few ulps short of t1): no step could take it, and it is nothing
+            # (1e-15 s); the samples at t1 come from this step's dense output
+            tn = t1
         # --- records: samples, extrema, dents
         si, shint = write_samples(samples, si, sample_t, tn, t, hstep, coef, mode, par, tab, shint)
         d_b = 0.0

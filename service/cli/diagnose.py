@@ -143,7 +143,8 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
         diagnosis, _ = Diagnoser(site).diagnose(passage, measured)
     except MeasurementError as exc:
         raise CommandError(f"invalid measurement {args.measured}: {exc}", EXIT_USAGE) from None
-    except (ValueError, ArithmeticError) as exc:
+    except (ValueError, ArithmeticError, RuntimeError) as exc:
+        # RuntimeError: the integrator could not finish a simulation the verdict needs
         raise CommandError(f"the fit failed: {exc}", EXIT_FAILURE) from None
     text = diagnosis.model_dump_json(indent=2)
     if args.out is not None:

@@ -65,6 +65,7 @@ from sim_core.diagnosis.forward import (
 )
 from sim_core.diagnosis.sensor import SensorModel
 from sim_core.diagnosis.turns import find_anchors
+from sim_core.passage import IntegrationError
 from sim_core.rail import RailProfile
 from sim_core.wheel import TWO_PI
 
@@ -246,7 +247,13 @@ class _Problem:
         if got is not None:
             return got
         flat = make_flat(self.wheel.radius, kind, length, depth_factor)
-        tau, tf = self.template(flat, zeta)
+        try:
+            tau, tf = self.template(flat, zeta)
+        except IntegrationError:
+            # a candidate the integrator cannot resolve explains nothing; the others stand
+            cand = Candidate(kind, length, zeta, math.inf, np.full(len(self.win), np.nan))
+            self.evaluated[key] = replace(cand, depth_factor=depth_factor)
+            return self.evaluated[key]
         half = 0.5 * length / self.speed
         windows = [(self.t[i0:i1], self.f[i0:i1]) for i0, i1 in self.win]
         centres, total = _align_periodic(
