@@ -164,3 +164,15 @@ def test_a_diagnosis_from_before_schema_1_1_still_reads() -> None:
         "peak_force_at_line_speed_high",
     } <= set(props)
     assert json.loads(d.model_dump_json())["verdict"] == "ok"
+
+
+@pytest.mark.parametrize("case_id", ["W32", "W39"])
+def test_threads_do_not_change_the_diagnosis(case_id: str) -> None:
+    """``railtwin diagnose`` spreads the fit over the cores; the answer is the one thread's."""
+    c = load_case(case_id)
+    one, _ = Diagnoser(c.site).diagnose(c.passage, c.measured)
+    two, _ = Diagnoser(c.site, threads=2).diagnose(c.passage, c.measured)
+    keep = {"wall_time"}
+    assert one.model_dump(exclude=keep) == two.model_dump(exclude=keep)
+    with pytest.raises(ValueError, match="threads must be at least 1"):
+        Diagnoser(c.site, threads=0)

@@ -13,6 +13,7 @@ Exit status: 0 done (whatever the verdict), 1 the fit failed, 2 invalid input.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 
@@ -108,6 +109,15 @@ def table(d: Diagnosis) -> str:
     return "\n".join(lines) + "\n"
 
 
+def _threads() -> int:
+    """The cores this process may use, at most 2 (the fit's kinds; beyond that, little)."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        cores = os.cpu_count() or 1
+    return max(1, min(2, cores))
+
+
 def cmd_diagnose(args: argparse.Namespace) -> int:
     from pydantic import ValidationError
 
@@ -140,7 +150,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
         flush=True,
     )
     try:
-        diagnosis, _ = Diagnoser(site).diagnose(passage, measured)
+        diagnosis, _ = Diagnoser(site, threads=_threads()).diagnose(passage, measured)
     except MeasurementError as exc:
         raise CommandError(f"invalid measurement {args.measured}: {exc}", EXIT_USAGE) from None
     except (ValueError, ArithmeticError, RuntimeError) as exc:

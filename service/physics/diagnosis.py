@@ -11,7 +11,8 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -21,7 +22,7 @@ from schemas.messages import WheelPassage
 from schemas.site import SiteConfig
 from service.physics.measurement_error import MeasurementError
 from service.physics.site_physics import SitePhysics
-from sim_core.diagnosis.estimate import FlatEstimate, estimate_flat, make_flat
+from sim_core.diagnosis.estimate import DEFAULT_OPTIONS, FlatEstimate, estimate_flat, make_flat
 from sim_core.diagnosis.forward import (
     Flat,
     FlatKind,
@@ -68,10 +69,21 @@ class FitCurves:
 
 
 class Diagnoser:
-    """Diagnoses measured passages at one site (one instance per site, reused)."""
+    """Diagnoses measured passages at one site (one instance per site, reused).
 
-    def __init__(self, site: SiteConfig, physics: SitePhysics | None = None) -> None:
+    ``threads``: how many threads one diagnosis spreads its simulations over (the fit's grid
+    and kinds, the line-speed band). ``railtwin diagnose`` uses the machine's cores; the
+    service keeps 1, its workers diagnose one wheel each. The result does not depend on it.
+    """
+
+    def __init__(
+        self, site: SiteConfig, physics: SitePhysics | None = None, threads: int = 1
+    ) -> None:
+        if threads < 1:
+            raise ValueError(f"Diagnoser: threads must be at least 1, got {threads}")
         self.site = site
+        self.threads = threads
+        self.options = replace(DEFAULT_OPTIONS, threads=threads)
         self.physics = physics if physics is not None else SitePhysics(site)
         cfg = site.diagnosis
         self.sensor = SensorModel(cfg.sensor_lowpass_hz, cfg.sensor_lowpass_order)
@@ -191,7 +203,7 @@ class Diagnoser:
         f = np.asarray(measured.force, dtype=np.float64)
         # a round wheel on the site's own rail, as measured: what the screen compares with
         baseline = self._measure(wheel, speed, None, float(t[0]), float(t[-1]), t)
-        est = estimate_flat(wheel, speed, t, f, self.sensor, baseline=baseline)
+        est = estimate_flat(wheel, speed, t, f, self.sensor, self.options, baseline=baseline)
         fit_wheel = with_damping_ratio(wheel, est.damping_ratio)
         if est.screened:
             fitted = baseline
@@ -305,19 +317,24 @@ class Diagnoser:
                 est.damping_ratio * (1.0 - LINE_DAMPING_BAND),
                 est.damping_ratio * (1.0 + LINE_DAMPING_BAND) + LINE_DAMPING_FLOOR,
             }
-        lows: list[float] = [point]
-        highs: list[float] = [point]
         R = wheel.radius
         phase = est.flat.phase if est.flat is not None else 0.0
+        runs: list[tuple[WheelOnSite, Flat]] = []
         for kind in kinds:
             for length in (max(est.length_low, 1e-3), est.length_high):
                 df = est.depth_factor if kind == est.best_kind else 1.0
                 flat = make_flat(R, kind, length, df).with_phase(phase)
-                for z in sorted(zetas):
-                    p = self._line_peak(with_damping_ratio(wheel, z), line_speed, flat, sample_rate)
-                    lows.append(p)
-                    highs.append(p)
-        return min(lows), max(highs)
+                runs += [(with_damping_ratio(wheel, z), flat) for z in sorted(zetas)]
+
+        def peak(run: tuple[WheelOnSite, Flat]) -> float:
+            return self._line_peak(run[0], line_speed, run[1], sample_rate)
+
+        if self.threads > 1:
+            with ThreadPoolExecutor(self.threads) as pool:
+                peaks = [point, *pool.map(peak, runs)]
+        else:
+            peaks = [point, *map(peak, runs)]
+        return min(peaks), max(peaks)
 
     def _measure(
         self,

@@ -45,7 +45,10 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
+from typing import TypeVar
 
 import numba
 import numpy as np
@@ -131,6 +134,7 @@ class FitOptions:
     ringing: bool = False
     clean_arrivals: bool = False
     first_impact_lead: bool = False
+    threads: int = 1
 
 
 DEFAULT_OPTIONS = FitOptions()
@@ -322,6 +326,31 @@ def _costs_kernel(
         out[j] = acc
 
 
+@numba.njit(cache=True, nogil=True)
+def _add_on_grid(
+    total: NDArray[np.float64],
+    s0: NDArray[np.float64],
+    turns: float,
+    period: NDArray[np.float64],
+    c0: float,
+    dc: float,
+    cost: NDArray[np.float64],
+) -> None:
+    """total[i, j] += the window's ``cost`` (sampled every ``dc`` from ``c0``, held at its
+    ends) linearly interpolated at the flat-centre time s0[i] + turns·period[j]."""
+    n = cost.size
+    for i in range(s0.size):
+        for j in range(period.size):
+            u = (s0[i] + turns * period[j] - c0) / dc
+            if u <= 0.0:
+                total[i, j] += cost[0]
+            elif u >= n - 1:
+                total[i, j] += cost[n - 1]
+            else:
+                k = int(u)
+                total[i, j] += cost[k] + (u - k) * (cost[k + 1] - cost[k])
+
+
 def _align_periodic(
     tau: NDArray[np.float64],
     tf: NDArray[np.float64],
@@ -355,7 +384,7 @@ def _align_periodic(
         hi = s0_grid[-1] + n[k] * t_hi + SHIFT_STEP
         sk = np.arange(lo, hi + 0.5 * SHIFT_STEP, SHIFT_STEP)
         ck = _window_costs(tau, tf, tw, fw, sk)
-        total += np.interp(s0_grid[:, None] + n[k] * t_grid[None, :], sk, ck)
+        _add_on_grid(total, s0_grid, float(n[k]), t_grid, float(sk[0]), SHIFT_STEP, ck)
     i, j = np.unravel_index(int(np.argmin(total)), total.shape)
     s0, period = float(s0_grid[i]), float(t_grid[j])
     dt = (t_grid[1] - t_grid[0]) if t_grid.size > 1 else 0.0
@@ -431,6 +460,18 @@ def detection_floor(speed: float, options: FitOptions = DEFAULT_OPTIONS) -> floa
     return options.min_length + u * (options.min_length_fast - options.min_length)
 
 
+_T = TypeVar("_T")
+
+
+def _map(
+    pool: ThreadPoolExecutor | None, fn: Callable[[_T], Candidate], items: Sequence[_T]
+) -> list[Candidate]:
+    """``fn`` over ``items`` in order, on ``pool``'s threads or in this one without it."""
+    if pool is None:
+        return [fn(x) for x in items]
+    return list(pool.map(fn, items))
+
+
 def _refine(
     prob: _Problem,
     kind: FlatKind,
@@ -485,7 +526,7 @@ def _best(
     return min(
         (
             c
-            for c in prob.evaluated.values()
+            for c in list(prob.evaluated.values())  # a snapshot: another kind's thread adds
             if c.kind == kind
             and (length is None or c.length == length)
             and (zeta is None or c.zeta == zeta)
@@ -916,21 +957,26 @@ def estimate_flat(
         lead=lead,
     )
     grid = tuple(sorted(options.lengths))
-    # 1. coarse: every kind, length and damping ratio of the grids
-    for kind in options.kinds:
-        for z in zetas:
-            for ln in grid:
-                prob.evaluate(kind, ln, z)
-    # 2. per kind, the length and the foundation's damping ratio by alternating golden
-    #    sections (they trade off: more damping looks like a shorter flat)
-    best_of_kind: dict[FlatKind, Candidate] = {}
-    for kind in options.kinds:
-        cur = min((c for c in prob.evaluated.values() if c.kind == kind), key=lambda c: c.cost)
-        best_of_kind[kind] = _refine(
-            prob, kind, cur.length, cur.zeta, zetas, grid, options, options.refine_rounds
-        )
-    if "rounded_flat" in best_of_kind:
-        best_of_kind["rounded_flat"] = _refine_depth(prob, best_of_kind["rounded_flat"], options)
+    with ThreadPoolExecutor(max(1, options.threads)) as pool:
+        on = pool if options.threads > 1 else None
+
+        # 1. coarse: every kind, length and damping ratio of the grids
+        def coarse(a: tuple[FlatKind, float, float]) -> Candidate:
+            return prob.evaluate(*a)
+
+        _map(on, coarse, [(kind, ln, z) for kind in options.kinds for z in zetas for ln in grid])
+
+        # 2. per kind, the length and the foundation's damping ratio by alternating golden
+        #    sections (they trade off: more damping looks like a shorter flat); a worn flat's
+        #    depth after that. The kinds are independent: one thread each.
+        def refine_kind(kind: FlatKind) -> Candidate:
+            cur = _best(prob, kind, depth_factor=None)
+            got = _refine(
+                prob, kind, cur.length, cur.zeta, zetas, grid, options, options.refine_rounds
+            )
+            return _refine_depth(prob, got, options) if kind == "rounded_flat" else got
+
+        best_of_kind = dict(zip(options.kinds, _map(on, refine_kind, options.kinds), strict=True))
     best = min(best_of_kind.values(), key=lambda c: c.cost)
     n_eff = n * (min(1.0, 2.0 * sensor.cutoff_hz / rate) if sensor.cutoff_hz else 1.0)
     n_eff = max(n_eff, 1.0)

@@ -32,6 +32,7 @@ off and hits back at several times the static load of 60 kN:
 from __future__ import annotations
 
 import math
+import threading
 from collections import OrderedDict
 from dataclasses import dataclass, field, replace
 from typing import Literal
@@ -72,6 +73,12 @@ RUN_IN_TURNS = 1.25
 
 TABLE_MARGIN = 0.02
 """m of constraint tabulated beyond each end of a simulated stretch."""
+
+WORN_TABLE_DX = 0.01
+"""m: the starting node spacing of a worn flat's table on a flat rail. The piece sweep
+refines to its Hermite tolerance wherever the outline bends, so the default 2 mm grid only
+adds nodes on the round part of the turn, where the constraint is level; 10 mm halves the
+cost of the fit's tables and moves a template by under 1e-7·P (tests/test_diagnosis.py)."""
 
 
 def typical_rounded_depth(radius: float, length: float) -> float:
@@ -199,21 +206,23 @@ class RailTables:
         self.rail = rail
         self.capacity = capacity
         self._tables: OrderedDict[tuple[float, float, float], ConstraintTable] = OrderedDict()
+        self._lock = threading.Lock()  # a diagnosis may simulate on several threads
 
     def table(self, radius: float, x0: float, x1: float) -> ConstraintTable:
         """Round-wheel constraint covering at least [x0, x1] (tabulated on a 1 m grid of ends)."""
         a = math.floor(x0) - 1.0
         b = math.ceil(x1) + 1.0
         key = (radius, a, b)
-        t = self._tables.get(key)
-        if t is None:
-            t = tabulate_constraint(WheelOutline.round(radius), self.rail, a, b)
-            self._tables[key] = t
-            while len(self._tables) > self.capacity:
-                self._tables.popitem(last=False)
-        else:
-            self._tables.move_to_end(key)
-        return t
+        with self._lock:
+            t = self._tables.get(key)
+            if t is None:
+                t = tabulate_constraint(WheelOutline.round(radius), self.rail, a, b)
+                self._tables[key] = t
+                while len(self._tables) > self.capacity:
+                    self._tables.popitem(last=False)
+            else:
+                self._tables.move_to_end(key)
+            return t
 
 
 def wheel_table(
@@ -224,7 +233,10 @@ def wheel_table(
     rail = rails.table(radius, a, b)
     if flat is None:
         return rail
-    wheel = tabulate_constraint(flat.outline(radius), RailProfile.flat(), a, b, phase=flat.phase)
+    dx = WORN_TABLE_DX if isinstance(flat, Flat) and flat.kind == "rounded_flat" else None
+    wheel = tabulate_constraint(
+        flat.outline(radius), RailProfile.flat(), a, b, phase=flat.phase, dx=dx
+    )
     if rails.rail.kind == "flat":
         return wheel
     return add_tables(wheel, rail, a, b)
