@@ -135,6 +135,7 @@ class FitOptions:
     clean_arrivals: bool = False
     first_impact_lead: bool = False
     threads: int = 1
+    depth_profile: bool = True
 
 
 DEFAULT_OPTIONS = FitOptions()
@@ -551,6 +552,43 @@ def _golden(fn: object, lo: float, hi: float, n: int) -> None:
             a, c, fc = c, d, fd
             d = a + g * (b - a)
             fd = fn(d)  # type: ignore[operator]
+
+
+def _same_depth(cand: Candidate, length: float) -> float:
+    """The depth factor that keeps ``cand``'s depth at ``length`` (within ``DEPTH_FACTORS``)."""
+    df = cand.depth_factor * (cand.length / length) ** 2
+    return min(max(df, DEPTH_FACTORS[0]), DEPTH_FACTORS[1])
+
+
+def _profile_cost(prob: _Problem, cand: Candidate, length: float, options: FitOptions) -> float:
+    """The cost at ``length`` of ``cand``'s kind and damping, a worn flat's depth profiled out.
+
+    A worn flat's depth and length trade off (a longer, shallower dip looks alike through the
+    chain): at each length of the interval's walk the depth is the fitted factor's or the one
+    that keeps the fitted depth, whichever fits better; a profile, not a slice at one factor.
+    """
+    cost = prob.evaluate(cand.kind, length, cand.zeta, cand.depth_factor).cost
+    if cand.kind == "rounded_flat" and options.depth_profile:
+        df = _same_depth(cand, length)
+        if df != cand.depth_factor:
+            cost = min(cost, prob.evaluate(cand.kind, length, cand.zeta, df).cost)
+    return cost
+
+
+def _profile_points(
+    prob: _Problem, cand: Candidate, options: FitOptions
+) -> list[tuple[float, float]]:
+    """(length, cost) of every length evaluated at ``cand``'s kind, damping and depth factor;
+    for a worn flat the cheapest over the depth factors tried at that length (a length tried
+    only at another factor, in the depth's own search, is left out: one poor factor there is
+    no bound on the profile)."""
+    same = [c for c in list(prob.evaluated.values()) if c.kind == cand.kind and c.zeta == cand.zeta]
+    best = {c.length: c.cost for c in same if c.depth_factor == cand.depth_factor}
+    if cand.kind == "rounded_flat" and options.depth_profile:
+        for c in same:
+            if c.length in best:
+                best[c.length] = min(best[c.length], c.cost)
+    return list(best.items())
 
 
 def _interval(points: list[tuple[float, float]], j_max: float, best: float) -> tuple[float, float]:
@@ -996,14 +1034,9 @@ def estimate_flat(
                 ln = cand.length * (1.0 + direction * step)
                 if not 0.002 <= ln <= 2.0 * grid[-1]:
                     break
-                if prob.evaluate(cand.kind, ln, cand.zeta, cand.depth_factor).cost > j_max:
+                if _profile_cost(prob, cand, ln, options) > j_max:
                     break
-        points = [
-            (c.length, c.cost)
-            for c in prob.evaluated.values()
-            if c.zeta == cand.zeta and c.kind == cand.kind and c.depth_factor == cand.depth_factor
-        ]
-        k_lo, k_hi = _interval(points, j_max, cand.length)
+        k_lo, k_hi = _interval(_profile_points(prob, cand, options), j_max, cand.length)
         lo, hi = min(lo, k_lo), max(hi, k_hi)
         interval_kinds.append(cand.kind)
     at_zeta = [c for c in prob.evaluated.values() if c.zeta == best.zeta and c.depth_factor == 1.0]
