@@ -177,6 +177,26 @@ def test_verdict_levels_at_their_edges(
         assert "limit" in r and "(" in r  # names the limit
 
 
+@pytest.mark.parametrize(
+    ("length", "upper", "expected"),
+    [
+        (0.0599, 0.0600, "remove"),  # the interval reaches the remove limit: out
+        (0.0599, 0.05999, "inspect"),  # just short of it: the point decides
+        (0.045, 0.0636, "remove"),
+        (0.061, 0.07, "remove"),  # over by the point already: one reason, not two
+        (0.02, None, "ok"),
+    ],
+)
+def test_remove_limit_checks_the_length_interval_upper_end(
+    length: float, upper: float | None, expected: str
+) -> None:
+    level, reasons = verdict(LIMITS, 100e3, None, length, 44.4, upper)
+    assert level == expected
+    assert sum("remove_length" in r for r in reasons) == (expected == "remove")
+    if upper is not None and expected == "remove" and length < LIMITS.remove_length:
+        assert any("upper end of its interval" in r for r in reasons)
+
+
 def test_limits_must_be_ordered() -> None:
     with pytest.raises(ValidationError, match="watch <= inspect <= remove"):
         DiagnosisConfig(watch_force=500e3)

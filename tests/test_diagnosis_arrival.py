@@ -75,3 +75,35 @@ def test_a_linear_ringing_is_fitted_before_the_window_and_removed_in_it() -> Non
         assert before > 0.01 * P
         assert np.max(np.abs(out[i0:i1] - P)) < 0.01 * before
     assert np.array_equal(out[:1000], f[:1000])  # the record outside the windows unchanged
+
+
+def test_a_lifted_arrival_template_starts_in_flight() -> None:
+    """``FitOptions.arrival_lifts``: a window may be matched by a template whose wheel
+    arrives lifted (in flight) instead of rolling; that template starts out of contact and
+    lands before the flat."""
+    from sim_core.diagnosis.estimate import _Problem, make_flat
+    from sim_core.diagnosis.forward import RailTables
+    from sim_core.passage import InitialState
+    from sim_core.rail import RailProfile
+
+    w = _wheel(0.05)
+    d0 = (P / w.contact.coefficient) ** (2.0 / 3.0)
+    prob = _Problem(
+        w,
+        25.0,
+        SensorModel(3000.0, 2),
+        75_000.0,
+        np.zeros(0),
+        np.zeros(0),
+        [],
+        np.zeros(0),
+        RailTables(RailProfile.flat()),
+        arrivals=(None, InitialState(y_c=5.0 * d0)),
+    )
+    flat = make_flat(R, "flat", 0.05)
+    _, rolling = prob.template(flat, 0.05, 0)
+    tau, lifted = prob.template(flat, 0.05, 1)
+    start = tau < tau[0] + 5e-4  # the first half millisecond, after the chain's settling
+    assert abs(float(np.median(rolling[start])) - P) < 0.01 * P
+    assert float(np.min(lifted[start])) < 0.2 * P  # airborne at first
+    assert float(np.max(lifted)) > P  # and lands again

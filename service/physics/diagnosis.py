@@ -241,6 +241,7 @@ class Diagnoser:
                 at_line,
                 flat.length if flat is not None else None,
                 cfg.line_speed,
+                est.length_high if flat is not None else None,
             )
         else:
             # the fit does not explain the record: judge the wheel by what was measured and by

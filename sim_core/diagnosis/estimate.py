@@ -68,7 +68,7 @@ from sim_core.diagnosis.forward import (
 )
 from sim_core.diagnosis.sensor import SensorModel
 from sim_core.diagnosis.turns import find_anchors
-from sim_core.passage import IntegrationError
+from sim_core.passage import InitialState, IntegrationError
 from sim_core.rail import RailProfile
 from sim_core.wheel import TWO_PI
 
@@ -108,10 +108,14 @@ class FitOptions:
     """Knobs of the search, with the values the validation was run with.
 
     ``max_earlier_turns``, ``ringing`` (``remove_ringing``), ``clean_arrivals``
-    (``_clean_arrivals``) and ``first_impact_lead`` (``turns.first_impact_lead``) are ways
-    of giving the template the state a lightly damped wheel arrives with; each was measured
-    on both validation sources and none improved both (docs/diagnosis.md, "Tried and not
-    kept"), so all are off.
+    (``_clean_arrivals``), ``first_impact_lead`` (``turns.first_impact_lead``) and
+    ``arrival_lifts`` (each window matched by whichever of the rolling template and
+    templates whose wheel arrives lifted by these multiples of the static indentation fits
+    it best, on a lightly damped site) are ways of giving the template the state a lightly
+    damped wheel arrives with; each was measured on both validation sources and none
+    improved both (docs/diagnosis.md, "Tried and not kept"), so all are off.
+
+    ``depth_profile``: a worn flat's length interval profiles the depth out (on).
     """
 
     lengths: tuple[float, ...] = LENGTH_GRID
@@ -136,6 +140,7 @@ class FitOptions:
     first_impact_lead: bool = False
     threads: int = 1
     depth_profile: bool = True
+    arrival_lifts: tuple[float, ...] = ()
 
 
 DEFAULT_OPTIONS = FitOptions()
@@ -204,25 +209,29 @@ class _Problem:
     evaluated: dict[tuple[str, float, float, float], Candidate] = field(default_factory=dict)
     tables: dict[tuple[str, float, float], ConstraintTable] = field(default_factory=dict)
     templates: dict[
-        tuple[str, float, float, float], tuple[NDArray[np.float64], NDArray[np.float64]]
+        tuple[str, float, float, float, int], tuple[NDArray[np.float64], NDArray[np.float64]]
     ] = field(default_factory=dict)
     turns: NDArray[np.int64] = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
     period_band: tuple[float, float] = (0.0, 0.0)
     max_earlier_turns: int = 0
     lead: float = 0.0
+    arrivals: tuple[InitialState | None, ...] = (None,)
 
-    def template(self, flat: Flat, zeta: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """(τ, filtered force): the flat's centre under the wheel at τ = 0 (kept)."""
-        tkey = (flat.kind, round(flat.length, 9), round(flat.depth, 12), round(zeta, 9))
+    def template(
+        self, flat: Flat, zeta: float, arrival: int = 0
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(τ, filtered force): the flat's centre under the wheel at τ = 0 (kept); the wheel
+        arrives rolling steadily, or in the state ``arrivals[arrival]``."""
+        tkey = (flat.kind, round(flat.length, 9), round(flat.depth, 12), round(zeta, 9), arrival)
         got = self.templates.get(tkey)
         if got is not None:
             return got
-        got = self._simulate_template(flat, zeta)
+        got = self._simulate_template(flat, zeta, self.arrivals[arrival])
         self.templates[tkey] = got
         return got
 
     def _simulate_template(
-        self, flat: Flat, zeta: float
+        self, flat: Flat, zeta: float, initial: InitialState | None = None
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         v = self.speed
         half = 0.5 * flat.length / v
@@ -241,7 +250,7 @@ class _Problem:
         wheel = with_damping_ratio(self.wheel, zeta)
         if wheel.rtol < TEMPLATE_RTOL:  # the fit's error is model error, not 1e-8
             wheel = replace(wheel, rtol=TEMPLATE_RTOL)
-        out = simulate_window(wheel, v, table, t0, t1, self.fine_rate)
+        out = simulate_window(wheel, v, table, t0, t1, self.fine_rate, initial)
         return out.t, _clip(self.sensor.filter(out.force, self.fine_rate), self.wheel.load)
 
     def evaluate(
@@ -252,17 +261,20 @@ class _Problem:
         if got is not None:
             return got
         flat = make_flat(self.wheel.radius, kind, length, depth_factor)
-        try:
-            tau, tf = self.template(flat, zeta)
-        except IntegrationError:
-            # a candidate the integrator cannot resolve explains nothing; the others stand
-            cand = Candidate(kind, length, zeta, math.inf, np.full(len(self.win), np.nan))
-            self.evaluated[key] = replace(cand, depth_factor=depth_factor)
-            return self.evaluated[key]
+        templates = []
+        for a in range(len(self.arrivals)):
+            try:
+                templates.append(self.template(flat, zeta, a))
+            except IntegrationError:
+                if a == 0:
+                    # a candidate the integrator cannot resolve explains nothing
+                    cand = Candidate(kind, length, zeta, math.inf, np.full(len(self.win), np.nan))
+                    self.evaluated[key] = replace(cand, depth_factor=depth_factor)
+                    return self.evaluated[key]
         half = 0.5 * length / self.speed
         windows = [(self.t[i0:i1], self.f[i0:i1]) for i0, i1 in self.win]
         centres, total = _align_periodic(
-            tau, tf, windows, self.anchors, self.turns, half, self.period_band, self.lead
+            templates, windows, self.anchors, self.turns, half, self.period_band, self.lead
         )
         cand = Candidate(kind, length, zeta, total, centres, depth_factor)
         self.evaluated[key] = cand
@@ -353,8 +365,7 @@ def _add_on_grid(
 
 
 def _align_periodic(
-    tau: NDArray[np.float64],
-    tf: NDArray[np.float64],
+    templates: list[tuple[NDArray[np.float64], NDArray[np.float64]]],
     windows: list[tuple[NDArray[np.float64], NDArray[np.float64]]],
     anchors: NDArray[np.float64],
     turns: NDArray[np.int64],
@@ -384,7 +395,9 @@ def _align_periodic(
         lo = s0_grid[0] + n[k] * t_lo - SHIFT_STEP
         hi = s0_grid[-1] + n[k] * t_hi + SHIFT_STEP
         sk = np.arange(lo, hi + 0.5 * SHIFT_STEP, SHIFT_STEP)
-        ck = _window_costs(tau, tf, tw, fw, sk)
+        ck = _window_costs(*templates[0], tw, fw, sk)
+        for tau, tf in templates[1:]:  # each window arrives in whichever state fits it
+            np.minimum(ck, _window_costs(tau, tf, tw, fw, sk), out=ck)
         _add_on_grid(total, s0_grid, float(n[k]), t_grid, float(sk[0]), SHIFT_STEP, ck)
     i, j = np.unravel_index(int(np.argmin(total)), total.shape)
     s0, period = float(s0_grid[i]), float(t_grid[j])
@@ -394,7 +407,10 @@ def _align_periodic(
     best = np.zeros((fine_s.size, fine_t.size))
     for k, (tw, fw) in enumerate(windows):
         shifts = (fine_s[:, None] + n[k] * fine_t[None, :]).ravel()
-        best += _window_costs(tau, tf, tw, fw, shifts).reshape(best.shape)
+        ck = _window_costs(*templates[0], tw, fw, shifts)
+        for tau, tf in templates[1:]:
+            np.minimum(ck, _window_costs(tau, tf, tw, fw, shifts), out=ck)
+        best += ck.reshape(best.shape)
     i, j = np.unravel_index(int(np.argmin(best)), best.shape)
     s0, period = float(fine_s[i]), float(fine_t[j])
     return s0 + n * period, float(best[i, j])
@@ -437,7 +453,7 @@ def _contrast(
         ]
         turns = prob.turns[ok] - prob.turns[ok][0]
         _, cost = _align_periodic(
-            tau, tf, win, anchors[ok], turns, half, prob.period_band, prob.lead
+            [(tau, tf)], win, anchors[ok], turns, half, prob.period_band, prob.lead
         )
         n = sum(w[0].size for w in win)
         load = prob.wheel.load
@@ -994,6 +1010,12 @@ def estimate_flat(
         max_earlier_turns=options.max_earlier_turns,
         lead=lead,
     )
+    if options.arrival_lifts and win:
+        period_est = TWO_PI * R / v
+        sigma = slowest_decay(wheel, zeta_site) if zeta_site > 0.0 else math.inf
+        if math.isfinite(sigma) and math.exp(-sigma * period_est) > RING_LEFT:
+            d0 = (P / wheel.contact.coefficient) ** (2.0 / 3.0)
+            prob.arrivals = (None, *(InitialState(y_c=h * d0) for h in options.arrival_lifts))
     grid = tuple(sorted(options.lengths))
     with ThreadPoolExecutor(max(1, options.threads)) as pool:
         on = pool if options.threads > 1 else None

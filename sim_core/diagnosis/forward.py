@@ -44,7 +44,13 @@ from sim_core.constraint import tabulate_constraint
 from sim_core.constraint.table import ConstraintTable
 from sim_core.contact_laws import ContactModel
 from sim_core.diagnosis.combined import add_tables
-from sim_core.passage import Foundation, PassageOutput, PassageSpec, simulate_passage
+from sim_core.passage import (
+    Foundation,
+    InitialState,
+    PassageOutput,
+    PassageSpec,
+    simulate_passage,
+)
 from sim_core.rail import RailProfile
 from sim_core.wheel import TWO_PI, WheelOutline
 
@@ -249,8 +255,10 @@ def simulate_window(
     t0: float,
     t1: float,
     sample_rate: float,
+    initial: InitialState | None = None,
 ) -> PassageOutput:
-    """The wheel from static equilibrium at t0 (rolling steadily there) to t1."""
+    """The wheel from static equilibrium at t0 (rolling steadily there) to t1, or from
+    ``initial`` (displacements from it and velocities)."""
     spec = PassageSpec(
         mass=wheel.mass,
         load=wheel.load,
@@ -259,7 +267,7 @@ def simulate_window(
         sample_rate=sample_rate,
         contact=wheel.contact,
         foundation=wheel.foundation,
-        initial=None,
+        initial=initial,
         rtol=wheel.rtol,
         t0=t0,
     )
