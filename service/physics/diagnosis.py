@@ -28,6 +28,7 @@ from sim_core.diagnosis.forward import (
     FlatKind,
     RailTables,
     WheelOnSite,
+    damping_ratio_of,
     flat_times,
     simulate_passage_run_in,
     with_damping_ratio,
@@ -218,7 +219,12 @@ class Diagnoser:
         line_low: float | None = None
         line_high: float | None = None
         if cfg.line_speed is not None:
-            at_line = self._line_peak(fit_wheel, cfg.line_speed, flat, measured.sample_rate)
+            # the site's damper where it states one: the fitted ratio (within a factor 2 of
+            # it) is the fit's nuisance, taking up what the twin does not model; the band
+            # covers both
+            stated = wheel.foundation.is_compliant and wheel.foundation.damping > 0.0
+            line_wheel = wheel if stated else fit_wheel
+            at_line = self._line_peak(line_wheel, cfg.line_speed, flat, measured.sample_rate)
             line_low, line_high = self._line_band(
                 wheel, cfg.line_speed, est, at_line, measured.sample_rate
             )
@@ -318,6 +324,8 @@ class Diagnoser:
                 est.damping_ratio * (1.0 - LINE_DAMPING_BAND),
                 est.damping_ratio * (1.0 + LINE_DAMPING_BAND) + LINE_DAMPING_FLOOR,
             }
+            if wheel.foundation.damping > 0.0:  # the site's own, the point forecast's
+                zetas.add(damping_ratio_of(wheel.foundation))
         R = wheel.radius
         phase = est.flat.phase if est.flat is not None else 0.0
         runs: list[tuple[WheelOnSite, Flat]] = []
