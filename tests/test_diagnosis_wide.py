@@ -167,12 +167,42 @@ def test_a_diagnosis_from_before_schema_1_1_still_reads() -> None:
 
 
 @pytest.mark.parametrize("case_id", ["W32", "W39"])
-def test_threads_do_not_change_the_diagnosis(case_id: str) -> None:
-    """``railtwin diagnose`` spreads the fit over the cores; the answer is the one thread's."""
+def test_cores_do_not_change_the_diagnosis(case_id: str) -> None:
+    """``railtwin diagnose`` spreads the fit over two cores (a forked child searches one kind
+    and runs half the line-speed band); the answer is the one core's."""
     c = load_case(case_id)
     one, _ = Diagnoser(c.site).diagnose(c.passage, c.measured)
-    two, _ = Diagnoser(c.site, threads=2).diagnose(c.passage, c.measured)
+    two, _ = Diagnoser(c.site, cores=2).diagnose(c.passage, c.measured)
     keep = {"wall_time"}
     assert one.model_dump(exclude=keep) == two.model_dump(exclude=keep)
-    with pytest.raises(ValueError, match="threads must be at least 1"):
-        Diagnoser(c.site, threads=0)
+    with pytest.raises(ValueError, match="cores must be at least 1"):
+        Diagnoser(c.site, cores=0)
+
+
+def test_diagnose_command_leaves_quickly_with_its_output_whole(tmp_path: Path) -> None:
+    """The ``railtwin`` script ends ``diagnose`` with ``os._exit`` after flushing
+    (``service.cli.main.QUICK_EXIT_COMMANDS``): the table, the --out file and the exit
+    status are all there, on success and on a usage error."""
+    import subprocess
+    import sys
+
+    c = load_case("W32")
+    pj = tmp_path / "p.json"
+    pj.write_text(c.passage.model_dump_json())
+    out = tmp_path / "d.json"
+    args = [sys.executable, "-m", "service.cli", "diagnose", "--site"]
+    args += [str(WIDE_DIR / "W32.site.toml"), "--passage", str(pj), "--measured"]
+    ok = subprocess.run(
+        [*args, str(WIDE_DIR / "W32.csv"), "--out", str(out), "--format", "json"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert ok.returncode == 0, ok.stderr
+    assert Diagnosis.model_validate_json(ok.stdout) == Diagnosis.model_validate_json(
+        out.read_text()
+    )
+    bad = subprocess.run(
+        [*args, str(tmp_path / "missing.csv")], capture_output=True, text=True, timeout=120
+    )
+    assert bad.returncode == 2 and "missing.csv" in bad.stderr

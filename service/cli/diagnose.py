@@ -109,8 +109,8 @@ def table(d: Diagnosis) -> str:
     return "\n".join(lines) + "\n"
 
 
-def _threads() -> int:
-    """The cores this process may use, at most 2 (the fit's kinds; beyond that, little)."""
+def _cores() -> int:
+    """The cores this process may use, at most 2 (the fit's two kinds)."""
     try:
         cores = len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
@@ -150,7 +150,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
         flush=True,
     )
     try:
-        diagnosis, _ = Diagnoser(site, threads=_threads()).diagnose(passage, measured)
+        diagnosis, _ = Diagnoser(site, cores=_cores()).diagnose(passage, measured)
     except MeasurementError as exc:
         raise CommandError(f"invalid measurement {args.measured}: {exc}", EXIT_USAGE) from None
     except (ValueError, ArithmeticError, RuntimeError) as exc:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import os
 import sys
 import traceback
@@ -614,6 +615,28 @@ def main(argv: Sequence[str] | None = None) -> int:
     return code
 
 
+QUICK_EXIT_COMMANDS = frozenset({"diagnose"})
+"""One-shot commands that leave without the interpreter's teardown. Freeing the compiled
+physics and its modules at exit took 0.13 s of ``railtwin diagnose``'s ~1 s (measured on
+W06 of the wide set); these commands hold no child, file or lock that needs an exit
+handler, so after their output is flushed they end with ``os._exit``."""
+
+
+def run() -> NoReturn:
+    """The ``railtwin`` console script: ``main()``, then exit with its status."""
+    argv = sys.argv[1:]
+    code = main(argv)
+    if _requested_command(argv) in QUICK_EXIT_COMMANDS:
+        try:
+            sys.stdout.flush()
+            sys.stderr.flush()
+        except BrokenPipeError:
+            pass
+        logging.shutdown()
+        os._exit(code)
+    sys.exit(code)
+
+
 def _report(exc: CommandError, args: argparse.Namespace) -> None:
     if getattr(args, "format", "table") == "json" and exc.report is not None:
         sys.stderr.write(exc.report.model_dump_json() + "\n")
@@ -622,4 +645,4 @@ def _report(exc: CommandError, args: argparse.Namespace) -> None:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run()

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import math
 import time
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -23,6 +22,7 @@ from schemas.site import SiteConfig
 from service.physics.measurement_error import MeasurementError
 from service.physics.site_physics import SitePhysics
 from sim_core.diagnosis.estimate import DEFAULT_OPTIONS, FlatEstimate, estimate_flat, make_flat
+from sim_core.diagnosis.forked import fork_call
 from sim_core.diagnosis.forward import (
     Flat,
     FlatKind,
@@ -72,19 +72,20 @@ class FitCurves:
 class Diagnoser:
     """Diagnoses measured passages at one site (one instance per site, reused).
 
-    ``threads``: how many threads one diagnosis spreads its simulations over (the fit's grid
-    and kinds, the line-speed band). ``railtwin diagnose`` uses the machine's cores; the
-    service keeps 1, its workers diagnose one wheel each. The result does not depend on it.
+    ``cores``: how many cores one diagnosis may use (2: a forked child searches one kind of
+    flat and runs half the line-speed band, ``sim_core.diagnosis.forked``). ``railtwin
+    diagnose`` uses the machine's; the service keeps 1, its workers diagnose one wheel each.
+    The result does not depend on it.
     """
 
     def __init__(
-        self, site: SiteConfig, physics: SitePhysics | None = None, threads: int = 1
+        self, site: SiteConfig, physics: SitePhysics | None = None, cores: int = 1
     ) -> None:
-        if threads < 1:
-            raise ValueError(f"Diagnoser: threads must be at least 1, got {threads}")
+        if cores < 1:
+            raise ValueError(f"Diagnoser: cores must be at least 1, got {cores}")
         self.site = site
-        self.threads = threads
-        self.options = replace(DEFAULT_OPTIONS, threads=threads)
+        self.cores = cores
+        self.options = replace(DEFAULT_OPTIONS, cores=cores)
         self.physics = physics if physics is not None else SitePhysics(site)
         cfg = site.diagnosis
         self.sensor = SensorModel(cfg.sensor_lowpass_hz, cfg.sensor_lowpass_order)
@@ -338,9 +339,13 @@ class Diagnoser:
         def peak(run: tuple[WheelOnSite, Flat]) -> float:
             return self._line_peak(run[0], line_speed, run[1], sample_rate)
 
-        if self.threads > 1:
-            with ThreadPoolExecutor(self.threads) as pool:
-                peaks = [point, *pool.map(peak, runs)]
+        if self.cores > 1:  # a forked child runs every other one
+            join = fork_call(lambda: [peak(r) for r in runs[::2]])
+            mine = [peak(r) for r in runs[1::2]]
+            theirs = join()
+            if theirs is None:
+                theirs = [peak(r) for r in runs[::2]]
+            peaks = [point, *theirs, *mine]
         else:
             peaks = [point, *map(peak, runs)]
         return min(peaks), max(peaks)

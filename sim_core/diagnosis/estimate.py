@@ -45,16 +45,14 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
-from typing import TypeVar
 
 import numba
 import numpy as np
 from numpy.typing import NDArray
 
 from sim_core.constraint.table import ConstraintTable
+from sim_core.diagnosis.forked import fork_call
 from sim_core.diagnosis.forward import (
     Flat,
     FlatKind,
@@ -138,7 +136,7 @@ class FitOptions:
     ringing: bool = False
     clean_arrivals: bool = False
     first_impact_lead: bool = False
-    threads: int = 1
+    cores: int = 1
     depth_profile: bool = True
     arrival_lifts: tuple[float, ...] = ()
 
@@ -477,16 +475,26 @@ def detection_floor(speed: float, options: FitOptions = DEFAULT_OPTIONS) -> floa
     return options.min_length + u * (options.min_length_fast - options.min_length)
 
 
-_T = TypeVar("_T")
+def _key(c: Candidate) -> tuple[str, float, float, float]:
+    """A candidate's key in ``_Problem.evaluated``."""
+    return (c.kind, round(c.length, 9), round(c.zeta, 9), round(c.depth_factor, 6))
 
 
-def _map(
-    pool: ThreadPoolExecutor | None, fn: Callable[[_T], Candidate], items: Sequence[_T]
-) -> list[Candidate]:
-    """``fn`` over ``items`` in order, on ``pool``'s threads or in this one without it."""
-    if pool is None:
-        return [fn(x) for x in items]
-    return list(pool.map(fn, items))
+def _search_kind(
+    prob: _Problem,
+    kind: FlatKind,
+    zetas: tuple[float, ...],
+    grid: tuple[float, ...],
+    options: FitOptions,
+) -> Candidate:
+    """The best ``kind`` of flat: the coarse grid, the length and damping refined, a worn
+    flat's depth fitted."""
+    for z in zetas:
+        for ln in grid:
+            prob.evaluate(kind, ln, z)
+    cur = _best(prob, kind, depth_factor=None)
+    got = _refine(prob, kind, cur.length, cur.zeta, zetas, grid, options, options.refine_rounds)
+    return _refine_depth(prob, got, options) if kind == "rounded_flat" else got
 
 
 def _refine(
@@ -543,7 +551,7 @@ def _best(
     return min(
         (
             c
-            for c in list(prob.evaluated.values())  # a snapshot: another kind's thread adds
+            for c in prob.evaluated.values()
             if c.kind == kind
             and (length is None or c.length == length)
             and (zeta is None or c.zeta == zeta)
@@ -1017,26 +1025,33 @@ def estimate_flat(
             d0 = (P / wheel.contact.coefficient) ** (2.0 / 3.0)
             prob.arrivals = (None, *(InitialState(y_c=h * d0) for h in options.arrival_lifts))
     grid = tuple(sorted(options.lengths))
-    with ThreadPoolExecutor(max(1, options.threads)) as pool:
-        on = pool if options.threads > 1 else None
+    # per kind: a coarse grid of lengths and damping ratios, then the length and the ratio by
+    # alternating golden sections (they trade off: more damping looks like a shorter flat),
+    # then a worn flat's depth; the kinds are independent, a forked child may take one
+    best_of_kind: dict[FlatKind, Candidate] = {}
+    kinds = options.kinds
+    join = None
+    if options.cores > 1 and len(kinds) > 1:
+        first = kinds[0]
 
-        # 1. coarse: every kind, length and damping ratio of the grids
-        def coarse(a: tuple[FlatKind, float, float]) -> Candidate:
-            return prob.evaluate(*a)
+        def child() -> tuple[Candidate, list[Candidate]]:
+            got = _search_kind(prob, first, zetas, grid, options)
+            return got, [c for c in prob.evaluated.values() if c.kind == first]
 
-        _map(on, coarse, [(kind, ln, z) for kind in options.kinds for z in zetas for ln in grid])
-
-        # 2. per kind, the length and the foundation's damping ratio by alternating golden
-        #    sections (they trade off: more damping looks like a shorter flat); a worn flat's
-        #    depth after that. The kinds are independent: one thread each.
-        def refine_kind(kind: FlatKind) -> Candidate:
-            cur = _best(prob, kind, depth_factor=None)
-            got = _refine(
-                prob, kind, cur.length, cur.zeta, zetas, grid, options, options.refine_rounds
-            )
-            return _refine_depth(prob, got, options) if kind == "rounded_flat" else got
-
-        best_of_kind = dict(zip(options.kinds, _map(on, refine_kind, options.kinds), strict=True))
+        join = fork_call(child)
+        kinds = kinds[1:]
+    for kind in kinds:
+        best_of_kind[kind] = _search_kind(prob, kind, zetas, grid, options)
+    if join is not None:
+        got = join()
+        first = options.kinds[0]
+        if got is None:  # no child's answer: the same search here
+            best_of_kind[first] = _search_kind(prob, first, zetas, grid, options)
+        else:
+            best_of_kind[first] = got[0]
+            for c in got[1]:
+                prob.evaluated.setdefault(_key(c), c)
+        best_of_kind = {k: best_of_kind[k] for k in options.kinds}
     best = min(best_of_kind.values(), key=lambda c: c.cost)
     n_eff = n * (min(1.0, 2.0 * sensor.cutoff_hz / rate) if sensor.cutoff_hz else 1.0)
     n_eff = max(n_eff, 1.0)
