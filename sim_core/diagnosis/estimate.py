@@ -114,6 +114,11 @@ class FitOptions:
     improved both (docs/diagnosis.md, "Tried and not kept"), so all are off.
 
     ``depth_profile``: a worn flat's length interval profiles the depth out (on).
+
+    ``coarse_depth_factors``: the worn kind's coarse grid at these depth factors (default
+    1.0 only). A grid over 0.7-1.3 finds long shallow worn flats followed at low speed
+    (W39) but doubles the fit's time and takes fresh flats at speed for worn ones; measured,
+    not kept (docs/diagnosis.md).
     """
 
     lengths: tuple[float, ...] = LENGTH_GRID
@@ -138,6 +143,7 @@ class FitOptions:
     first_impact_lead: bool = False
     cores: int = 1
     depth_profile: bool = True
+    coarse_depth_factors: tuple[float, ...] = (1.0,)
     arrival_lifts: tuple[float, ...] = ()
 
 
@@ -489,11 +495,23 @@ def _search_kind(
 ) -> Candidate:
     """The best ``kind`` of flat: the coarse grid, the length and damping refined, a worn
     flat's depth fitted."""
-    for z in zetas:
-        for ln in grid:
-            prob.evaluate(kind, ln, z)
+    dfs = options.coarse_depth_factors if kind == "rounded_flat" else (1.0,)
+    for df in dfs:
+        for z in zetas:
+            for ln in grid:
+                prob.evaluate(kind, ln, z, df)
     cur = _best(prob, kind, depth_factor=None)
-    got = _refine(prob, kind, cur.length, cur.zeta, zetas, grid, options, options.refine_rounds)
+    got = _refine(
+        prob,
+        kind,
+        cur.length,
+        cur.zeta,
+        zetas,
+        grid,
+        options,
+        options.refine_rounds,
+        cur.depth_factor,
+    )
     return _refine_depth(prob, got, options) if kind == "rounded_flat" else got
 
 
@@ -506,11 +524,12 @@ def _refine(
     grid: tuple[float, ...],
     options: FitOptions,
     rounds: int,
+    df: float = 1.0,
 ) -> Candidate:
     """Alternate golden sections on the damping ratio and the length of one kind.
 
     The first round brackets by the coarse grids' neighbours, later rounds by ±0.06 in
-    damping ratio and ±10 % in length.
+    damping ratio and ±10 % in length; a worn flat at the depth factor ``df``.
     """
     for rnd in range(rounds):
         if len(zetas) > 1:
@@ -520,22 +539,25 @@ def _refine(
             else:
                 zlo, zhi = max(zetas[0], z - 0.06), min(zetas[-1], z + 0.06)
             _golden(
-                lambda zz, ln=ln: prob.evaluate(kind, ln, zz).cost,
+                lambda zz, ln=ln: prob.evaluate(kind, ln, zz, df).cost,
                 zlo,
                 zhi,
                 options.refine_evaluations - 2,
             )
-            z = _best(prob, kind, length=ln).zeta
+            z = _best(prob, kind, length=ln, depth_factor=df).zeta
         if rnd == 0:
-            i = int(np.argmin([prob.evaluate(kind, g, z).cost for g in grid]))
+            i = int(np.argmin([prob.evaluate(kind, g, z, df).cost for g in grid]))
             llo, lhi = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
         else:
             llo, lhi = 0.9 * ln, min(1.1 * ln, grid[-1])
         _golden(
-            lambda ll, z=z: prob.evaluate(kind, ll, z).cost, llo, lhi, options.refine_evaluations
+            lambda ll, z=z: prob.evaluate(kind, ll, z, df).cost,
+            llo,
+            lhi,
+            options.refine_evaluations,
         )
-        ln = _best(prob, kind, zeta=z).length
-    return _best(prob, kind, zeta=z)
+        ln = _best(prob, kind, zeta=z, depth_factor=df).length
+    return _best(prob, kind, zeta=z, depth_factor=df)
 
 
 def _best(
