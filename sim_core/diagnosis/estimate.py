@@ -600,6 +600,11 @@ def _golden(fn: object, lo: float, hi: float, n: int) -> None:
             fd = fn(d)  # type: ignore[operator]
 
 
+WALK_STEPS = (0.06, 0.15, 0.3, 0.5)
+"""Relative steps in length by which the interval is walked out from a kind's best, each
+side, until the cost passes the χ² band's bound."""
+
+
 def _same_depth(cand: Candidate, length: float) -> float:
     """The depth factor that keeps ``cand``'s depth at ``length`` (within ``DEPTH_FACTORS``)."""
     df = cand.depth_factor * (cand.length / length) ** 2
@@ -1058,6 +1063,13 @@ def estimate_flat(
 
         def child() -> tuple[Candidate, list[Candidate]]:
             got = _search_kind(prob, first, zetas, grid, options)
+            # the interval's walk around it, ahead of knowing how far it goes (the child
+            # has time while the other kind's depth is fitted; the walk then finds these)
+            for direction in (-1.0, 1.0):
+                for step in WALK_STEPS:
+                    ln = got.length * (1.0 + direction * step)
+                    if 0.002 <= ln <= 2.0 * grid[-1]:
+                        _profile_cost(prob, got, ln, options)
             return got, [c for c in prob.evaluated.values() if c.kind == first]
 
         join = fork_call(child)
@@ -1089,7 +1101,7 @@ def estimate_flat(
         if cand.cost > j_max and cand is not best:
             continue
         for direction in (-1.0, 1.0):
-            for step in (0.06, 0.15, 0.3, 0.5):
+            for step in WALK_STEPS:
                 ln = cand.length * (1.0 + direction * step)
                 if not 0.002 <= ln <= 2.0 * grid[-1]:
                     break
