@@ -40,7 +40,7 @@ from service.clients.feeder import (  # noqa: E402
 )
 from service.clients.synthesize import measure  # noqa: E402
 from service.physics.diagnosis import Diagnoser  # noqa: E402
-from service.twin.twin import json_encoding  # noqa: E402
+from service.wire.encoding import json_encoding  # noqa: E402
 from service.wire.keyspace import SiteKeys  # noqa: E402
 from service.wire.site import load_site  # noqa: E402
 from service.wire.zenoh_session import build_config, free_tcp_endpoint, open_session  # noqa: E402

@@ -83,8 +83,9 @@ def test_markdown_has_every_section() -> None:
 
 
 def test_every_benchmark_import_resolves() -> None:
-    """Each ``from railtwin-module import ...`` in benchmarks/ and validation/ names a module
-    that exists (a benchmark's lazy import of a moved module broke ``make bench`` once)."""
+    """Each ``from railtwin-module import name`` in benchmarks/ and validation/ names a module
+    that exists and a name it has (a benchmark's lazy import of a moved module broke
+    ``make bench`` once, and ``diagnosis_train_bench``'s of a moved function later)."""
     import ast
     import importlib.util
     from pathlib import Path
@@ -98,4 +99,16 @@ def test_every_benchmark_import_resolves() -> None:
                 assert node.module is not None
                 if importlib.util.find_spec(node.module) is None:
                     missing.append(f"{path.relative_to(root)}: {node.module}")
+                    continue
+                # and the names it takes from there (a moved function broke one once more)
+                mod = importlib.import_module(node.module)
+                for alias in node.names:
+                    if alias.name == "*" or hasattr(mod, alias.name):
+                        continue
+                    is_package = hasattr(mod, "__path__")
+                    if (
+                        not is_package
+                        or importlib.util.find_spec(f"{node.module}.{alias.name}") is None
+                    ):
+                        missing.append(f"{path.relative_to(root)}: {node.module}.{alias.name}")
     assert not missing, missing
