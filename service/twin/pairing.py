@@ -196,8 +196,8 @@ class Pairing:
         data = diag.model_dump_json().encode()
         self.diagnoses.add(pid, made_at=time.time(), timestamp=passage.timestamp, data=data)
         keys = self.output.keys
+        self.done += 1  # counted before it is published, as a passage's result
         self.output.put(keys.diagnosis(pid), f"{keys.prefix}/diagnosis", Diagnosis, data)
-        self.done += 1
         recorder = self.output.recorder
         if recorder is not None:
             recorder.diagnosis(

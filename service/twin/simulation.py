@@ -201,8 +201,10 @@ class Simulation:
             )
             return
         result = done.result
-        result_data = self._publish_result(result, item.received_mono, done.data, done.series)
+        # counted before it is published: a consumer that has the result and asks for the
+        # health sees it counted (a router in between once showed the race)
         self.done += 1
+        result_data = self._publish_result(result, item.received_mono, done.data, done.series)
         recorder = self.output.recorder
         if recorder is not None:
             recorder.passage(result, result_data)
