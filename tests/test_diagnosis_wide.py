@@ -232,3 +232,29 @@ def test_a_depth_grid_finds_w39_which_the_default_search_misses() -> None:
     assert found.best_kind == "rounded_flat"
     assert abs(found.best_length - true_length) <= _tolerance(true_length)
     assert found.cost_best < 0.2 * default.cost_best
+
+
+def test_a_simulation_the_integrator_cannot_resolve_still_gets_a_verdict(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Should the integrator fail on the round-wheel baseline or on every line-speed run,
+    the wheel still gets a verdict from what was measured, and the reasons say why the
+    forecast is missing (a diagnosis is given for every measured wheel)."""
+    import service.physics.diagnosis as sd
+    from sim_core.passage import IntegrationError
+
+    c = load_case("W32")
+    line = c.site.diagnosis.line_speed
+    real = sd.simulate_passage_run_in
+
+    def failing(wheel, speed, flat, *args, **kwargs):  # type: ignore[no-untyped-def]
+        if speed == line or flat is None:
+            raise IntegrationError("the step size fell below 1e-15 s (injected)")
+        return real(wheel, speed, flat, *args, **kwargs)
+
+    monkeypatch.setattr(sd, "simulate_passage_run_in", failing)
+    d, curves = Diagnoser(c.site).diagnose(c.passage, c.measured)
+    assert d.flat is not None and d.verdict == "remove"  # 429 kN measured: over 400 kN
+    assert d.peak_force_at_line_speed is None and d.peak_force_at_line_speed_high is None
+    assert any("could not be simulated" in r for r in d.reasons)
+    assert curves.fitted.shape == curves.measured.shape

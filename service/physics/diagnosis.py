@@ -35,6 +35,7 @@ from sim_core.diagnosis.forward import (
 )
 from sim_core.diagnosis.sensor import SensorModel
 from sim_core.diagnosis.verdict import Limits, verdict
+from sim_core.passage import IntegrationError
 
 MIN_RECORD_FRACTION = 0.5
 """A record must cover at least this fraction of the wheel's time on the site."""
@@ -204,13 +205,17 @@ class Diagnoser:
         t = measured.t_start + np.arange(measured.samples) / measured.sample_rate
         f = np.asarray(measured.force, dtype=np.float64)
         # a round wheel on the site's own rail, as measured: what the screen compares with
-        baseline = self._measure(wheel, speed, None, float(t[0]), float(t[-1]), t)
+        # (should the integrator not resolve it, the screen compares with the static load)
+        baseline = self._measure_or_none(wheel, speed, None, float(t[0]), float(t[-1]), t)
         est = estimate_flat(wheel, speed, t, f, self.sensor, self.options, baseline=baseline)
         fit_wheel = with_damping_ratio(wheel, est.damping_ratio)
-        if est.screened:
-            fitted = baseline
-        else:
-            fitted = self._measure(fit_wheel, est.speed, est.flat, float(t[0]), float(t[-1]), t)
+        fitted = baseline
+        if not est.screened:
+            fitted = self._measure_or_none(
+                fit_wheel, est.speed, est.flat, float(t[0]), float(t[-1]), t
+            )
+        if fitted is None:  # only the drawn curve lacks it
+            fitted = np.full_like(f, passage.load)
         cfg = self.site.diagnosis
         flat = est.flat
         noise = est.noise_level
@@ -229,6 +234,7 @@ class Diagnoser:
             line_low, line_high = self._line_band(
                 wheel, cfg.line_speed, est, at_line, measured.sample_rate
             )
+        unsimulated = cfg.line_speed is not None and (at_line is None or line_high is None)
         finding = None
         if flat is not None:
             finding = FlatFinding(
@@ -271,6 +277,11 @@ class Diagnoser:
                 f"{noise / 1e3:.2f} kN > {EXPLAINED_RATIO:g}): verdict from "
                 f"{basis}",
             )
+        if unsimulated:
+            reasons.append(
+                "the line-speed forecast could not be simulated (the integrator did not "
+                "resolve it): the verdict stands on the measured peaks and the length"
+            )
         impacts = (
             flat_times(passage.radius, est.speed, flat.phase, float(t[0]), float(t[-1]))
             if flat is not None
@@ -297,23 +308,26 @@ class Diagnoser:
 
     def _line_peak(
         self, wheel: WheelOnSite, line_speed: float, flat: Flat | None, sample_rate: float
-    ) -> float:
-        """The largest force the site would measure of ``wheel`` with ``flat`` at line speed."""
+    ) -> float | None:
+        """The largest force the site would measure of ``wheel`` with ``flat`` at line speed
+        (None if the integrator cannot resolve that passage)."""
         dur = self.site.length / line_speed
         rate = self.sensor.fine_rate(sample_rate)
         tl = np.arange(0.0, dur, 1.0 / sample_rate)
-        return float(np.max(self._measure(wheel, line_speed, flat, 0.0, dur, tl, rate)))
+        got = self._measure_or_none(wheel, line_speed, flat, 0.0, dur, tl, rate)
+        return None if got is None else float(np.max(got))
 
     def _line_band(
         self,
         wheel: WheelOnSite,
         line_speed: float,
         est: FlatEstimate,
-        point: float,
+        point: float | None,
         sample_rate: float,
-    ) -> tuple[float, float]:
+    ) -> tuple[float | None, float | None]:
         """(low, high) of the line-speed forecast: the fitted wheel with the ends of the length
-        interval, every kind that fits, and the damping ratio's band (see docs/diagnosis.md)."""
+        interval, every kind that fits, and the damping ratio's band (see docs/diagnosis.md);
+        a run the integrator cannot resolve is left out (None, None if all are)."""
         if est.best_kind is None or est.flat is None:
             return point, point
         # both kinds, whichever fitted: at speed a fresh flat and a worn one of the same length
@@ -336,7 +350,7 @@ class Diagnoser:
                 flat = make_flat(R, kind, length, df).with_phase(phase)
                 runs += [(with_damping_ratio(wheel, z), flat) for z in sorted(zetas)]
 
-        def peak(run: tuple[WheelOnSite, Flat]) -> float:
+        def peak(run: tuple[WheelOnSite, Flat]) -> float | None:
             return self._line_peak(run[0], line_speed, run[1], sample_rate)
 
         if self.cores > 1:  # a forked child runs every other one
@@ -345,10 +359,28 @@ class Diagnoser:
             theirs = join()
             if theirs is None:
                 theirs = [peak(r) for r in runs[::2]]
-            peaks = [point, *theirs, *mine]
+            got = [point, *theirs, *mine]
         else:
-            peaks = [point, *map(peak, runs)]
-        return min(peaks), max(peaks)
+            got = [point, *map(peak, runs)]
+        peaks = [p for p in got if p is not None]
+        return (min(peaks), max(peaks)) if peaks else (None, None)
+
+    def _measure_or_none(
+        self,
+        wheel: WheelOnSite,
+        speed: float,
+        flat: Flat | None,
+        t0: float,
+        t1: float,
+        t_out: NDArray[np.float64],
+        rate: float | None = None,
+    ) -> NDArray[np.float64] | None:
+        """``_measure``, or None where the integrator cannot resolve the passage (a verdict is
+        still given: the fit's own candidates are treated alike, ``estimate._Problem``)."""
+        try:
+            return self._measure(wheel, speed, flat, t0, t1, t_out, rate)
+        except IntegrationError:
+            return None
 
     def _measure(
         self,
