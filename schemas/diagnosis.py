@@ -118,20 +118,23 @@ class Diagnosis(VersionedMessage):
     reasons: list[str] = Field(description="each limit that was passed, named, with the values")
     peak_force_measured: Finite = Field(description="largest measured force, N")
     peak_force_fit: Finite = Field(
-        description="largest force of the best fit, re-simulated over the record as measured, N"
+        description="largest force of the best fit, re-simulated over the record as measured, "
+        "N (the static load if that simulation could not be resolved; reasons says so)"
     )
     fit_rms: NonNegative = Field(
         description="rms difference between measured and fitted force over the fitted "
         "windows (approach, dip and first impact of each turn), N"
     )
     peak_force_at_line_speed: Finite | None = Field(
-        description="the fitted wheel re-simulated at the site's line_speed, as the site "
-        "would measure it, N; null without a line_speed"
+        description="the fitted wheel re-simulated at the site's line_speed on the site's own "
+        "damper where the site states one, as the site would measure it, N; null without a "
+        "line_speed or if that simulation could not be resolved (reasons says so)"
     )
     peak_force_at_line_speed_low: Finite | None = Field(
         default=None,
         description="lower end of the line-speed forecast: the smallest peak over the length "
-        "interval's ends, the kinds that fit and the damping band, N; null without a line_speed",
+        "interval's ends, both kinds and the damping band, N; null without a line_speed or "
+        "if none of those simulations could be resolved",
     )
     peak_force_at_line_speed_high: Finite | None = Field(
         default=None,

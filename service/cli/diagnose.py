@@ -124,7 +124,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     from schemas.messages import WheelPassage
     from service.cli.common import read_json, write_atomic
     from service.clients.measured_io import MeasuredFileError, read_measured
-    from service.physics.diagnosis import Diagnoser, MeasurementError
+    from service.physics.diagnosis import Diagnoser, IntegrationError, MeasurementError
     from service.wire.site import SiteFileError, load_site
 
     try:
@@ -153,8 +153,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
         diagnosis, _ = Diagnoser(site, cores=_cores()).diagnose(passage, measured)
     except MeasurementError as exc:
         raise CommandError(f"invalid measurement {args.measured}: {exc}", EXIT_USAGE) from None
-    except (ValueError, ArithmeticError, RuntimeError) as exc:
-        # RuntimeError: the integrator could not finish a simulation the verdict needs
+    except (ValueError, ArithmeticError, IntegrationError) as exc:
         raise CommandError(f"the fit failed: {exc}", EXIT_FAILURE) from None
     text = diagnosis.model_dump_json(indent=2)
     if args.out is not None:

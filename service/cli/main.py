@@ -15,6 +15,7 @@ the handler, not at module level, so that ``railtwin --help`` starts fast.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import logging
 import os
@@ -627,11 +628,10 @@ def run() -> NoReturn:
     argv = sys.argv[1:]
     code = main(argv)
     if _requested_command(argv) in QUICK_EXIT_COMMANDS:
-        try:
-            sys.stdout.flush()
-            sys.stderr.flush()
-        except BrokenPipeError:
-            pass
+        for stream in (sys.stdout, sys.stderr):
+            # a closed pipe or a full disk: nothing more can be said there
+            with contextlib.suppress(OSError):
+                stream.flush()
         logging.shutdown()
         os._exit(code)
     sys.exit(code)

@@ -22,7 +22,7 @@ from schemas.site import SiteConfig
 from service.physics.measurement_error import MeasurementError
 from service.physics.site_physics import SitePhysics
 from sim_core.diagnosis.estimate import DEFAULT_OPTIONS, FlatEstimate, estimate_flat, make_flat
-from sim_core.diagnosis.forked import fork_call
+from sim_core.diagnosis.forked import Forked
 from sim_core.diagnosis.forward import (
     Flat,
     FlatKind,
@@ -36,6 +36,8 @@ from sim_core.diagnosis.forward import (
 from sim_core.diagnosis.sensor import SensorModel
 from sim_core.diagnosis.verdict import Limits, verdict
 from sim_core.passage import IntegrationError
+
+__all__ = ["Diagnoser", "FitCurves", "IntegrationError", "MeasurementError"]
 
 MIN_RECORD_FRACTION = 0.5
 """A record must cover at least this fraction of the wheel's time on the site."""
@@ -214,7 +216,8 @@ class Diagnoser:
             fitted = self._measure_or_none(
                 fit_wheel, est.speed, est.flat, float(t[0]), float(t[-1]), t
             )
-        if fitted is None:  # only the drawn curve lacks it
+        refit_failed = fitted is None
+        if fitted is None:  # only the drawn curve and peak_force_fit lack it
             fitted = np.full_like(f, passage.load)
         cfg = self.site.diagnosis
         flat = est.flat
@@ -251,7 +254,7 @@ class Diagnoser:
             level, reasons = verdict(
                 self.limits,
                 peak_measured,
-                at_line,
+                at_line if at_line is not None else line_high,  # the point lost: the band's top
                 flat.length if flat is not None else None,
                 cfg.line_speed,
                 est.length_high if flat is not None else None,
@@ -276,6 +279,11 @@ class Diagnoser:
                 f"{est.fit_rms / 1e3:.1f} kN rms = {ratio:.1f} x the record's noise "
                 f"{noise / 1e3:.2f} kN > {EXPLAINED_RATIO:g}): verdict from "
                 f"{basis}",
+            )
+        if refit_failed:
+            reasons.append(
+                "the fitted wheel could not be re-simulated over the record (the integrator "
+                "did not resolve it): peak_force_fit is the static load"
             )
         if unsimulated:
             reasons.append(
@@ -354,9 +362,9 @@ class Diagnoser:
             return self._line_peak(run[0], line_speed, run[1], sample_rate)
 
         if self.cores > 1:  # a forked child runs every other one
-            join = fork_call(lambda: [peak(r) for r in runs[::2]])
-            mine = [peak(r) for r in runs[1::2]]
-            theirs = join()
+            with Forked(lambda: [peak(r) for r in runs[::2]]) as forked:
+                mine = [peak(r) for r in runs[1::2]]
+                theirs = forked.result()
             if theirs is None:
                 theirs = [peak(r) for r in runs[::2]]
             got = [point, *theirs, *mine]

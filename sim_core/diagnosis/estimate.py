@@ -52,7 +52,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sim_core.constraint.table import ConstraintTable
-from sim_core.diagnosis.forked import fork_call
+from sim_core.diagnosis.forked import Forked
 from sim_core.diagnosis.forward import (
     Flat,
     FlatKind,
@@ -438,7 +438,10 @@ def _contrast(
     significance over the largest of those null significances."""
     R = prob.wheel.radius
     flat = make_flat(R, best.kind, best.length, best.depth_factor)
-    tau, tf = prob.template(flat, best.zeta)
+    try:
+        tau, tf = prob.template(flat, best.zeta)
+    except IntegrationError:
+        return 1.0  # not measurable: the flat does not stand out by this test
     half = 0.5 * best.length / prob.speed
     t, f = prob.t, prob.f
     period = TWO_PI * R / prob.speed
@@ -636,6 +639,14 @@ def _profile_points(
     same = [c for c in list(prob.evaluated.values()) if c.kind == cand.kind and c.zeta == cand.zeta]
     best = {c.length: c.cost for c in same if c.depth_factor == cand.depth_factor}
     if cand.kind == "rounded_flat" and options.depth_profile:
+        # a length seen at the fitted factor only (the depth's own golden sections) is a
+        # slice, not the profile: where depth and length trade off it would cut the interval
+        # short, so it counts only where the same-depth factor was tried too (the walk) or
+        # coincides with the fitted one
+        profiled = {
+            c.length for c in same if abs(c.depth_factor - _same_depth(cand, c.length)) < 1e-9
+        }
+        best = {ln: j for ln, j in best.items() if ln in profiled or ln == cand.length}
         for c in same:
             if c.length in best:
                 best[c.length] = min(best[c.length], c.cost)
@@ -889,10 +900,15 @@ def _dismissed(
         RailTables(RailProfile.flat()),
     )
     floor = detection_floor(speed, options)
-    smallest = min(
-        float(np.max(np.abs(prob.template(make_flat(wheel.radius, kind, floor), zeta_max)[1] - P)))
-        for kind in options.kinds
-    )
+    try:
+        smallest = min(
+            float(
+                np.max(np.abs(prob.template(make_flat(wheel.radius, kind, floor), zeta_max)[1] - P))
+            )
+            for kind in options.kinds
+        )
+    except IntegrationError:
+        return False  # no floor to compare with: the fit decides
     return deviation < smallest
 
 
@@ -1057,14 +1073,14 @@ def estimate_flat(
     # then a worn flat's depth; the kinds are independent, a forked child may take one
     best_of_kind: dict[FlatKind, Candidate] = {}
     kinds = options.kinds
-    join = None
     if options.cores > 1 and len(kinds) > 1:
         first = kinds[0]
 
         def child() -> tuple[Candidate, list[Candidate]]:
             got = _search_kind(prob, first, zetas, grid, options)
             # the interval's walk around it, ahead of knowing how far it goes (the child
-            # has time while the other kind's depth is fitted; the walk then finds these)
+            # has time while the other kind's depth is fitted; the walk then finds these;
+            # those it does not need stay in the profile only, never in the Diagnosis)
             for direction in (-1.0, 1.0):
                 for step in WALK_STEPS:
                     ln = got.length * (1.0 + direction * step)
@@ -1072,20 +1088,20 @@ def estimate_flat(
                         _profile_cost(prob, got, ln, options)
             return got, [c for c in prob.evaluated.values() if c.kind == first]
 
-        join = fork_call(child)
-        kinds = kinds[1:]
-    for kind in kinds:
-        best_of_kind[kind] = _search_kind(prob, kind, zetas, grid, options)
-    if join is not None:
-        got = join()
-        first = options.kinds[0]
-        if got is None:  # no child's answer: the same search here
+        with Forked(child) as forked:
+            for kind in kinds[1:]:
+                best_of_kind[kind] = _search_kind(prob, kind, zetas, grid, options)
+            from_child = forked.result()
+        if from_child is None:  # no child's answer: the same search here
             best_of_kind[first] = _search_kind(prob, first, zetas, grid, options)
         else:
-            best_of_kind[first] = got[0]
-            for c in got[1]:
+            best_of_kind[first] = from_child[0]
+            for c in from_child[1]:
                 prob.evaluated.setdefault(_key(c), c)
-        best_of_kind = {k: best_of_kind[k] for k in options.kinds}
+        best_of_kind = {k: best_of_kind[k] for k in kinds}
+    else:
+        for kind in kinds:
+            best_of_kind[kind] = _search_kind(prob, kind, zetas, grid, options)
     best = min(best_of_kind.values(), key=lambda c: c.cost)
     n_eff = n * (min(1.0, 2.0 * sensor.cutoff_hz / rate) if sensor.cutoff_hz else 1.0)
     n_eff = max(n_eff, 1.0)

@@ -6,56 +6,106 @@ not move with two threads). A child forked after everything is imported and comp
 the parent's memory copy-on-write, computes one kind, and sends its result back pickled
 through a pipe; the parent computes the other meanwhile.
 
-    >>> join = fork_call(lambda: sum(range(10)))
-    >>> join()
+    >>> with Forked(lambda: sum(range(10))) as child:
+    ...     child.result()
     45
 
-Where ``os.fork`` does not exist, or the child fails, ``join()`` gives ``None`` and the caller
-computes the value itself: the answer never depends on whether a child helped.
+Where ``os.fork`` does not exist or fails, where other threads run (a fork would copy
+their locks, held or not), or where the child fails, ``result()`` gives ``None`` and the
+caller computes the value itself: the answer never depends on whether a child helped.
+Leaving the ``with`` block without asking for the result (the parent's own half raised)
+kills the child and reaps it.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import pickle
+import signal
+import threading
 from collections.abc import Callable
-from typing import TypeVar
+from types import TracebackType
+from typing import Generic, TypeVar
 
-__all__ = ["fork_call"]
+__all__ = ["Forked"]
 
 T = TypeVar("T")
 
 
-def fork_call(fn: Callable[[], T]) -> Callable[[], T | None]:
-    """Start ``fn()`` in a forked child; the returned function waits for it and gives its
-    result, or ``None`` if there is no fork or the child failed."""
-    if not hasattr(os, "fork"):
-        return lambda: None
-    r, w = os.pipe()
-    pid = os.fork()
-    if pid == 0:  # the child: compute, send, and leave without running any exit handler
-        code = 0
-        try:
-            os.close(r)
-            data = pickle.dumps(("ok", fn()), protocol=pickle.HIGHEST_PROTOCOL)
-        except BaseException as exc:  # whatever it was, the parent computes
-            data = pickle.dumps(("error", f"{type(exc).__name__}: {exc}"))
-            code = 1
-        try:
-            with os.fdopen(w, "wb") as out:
-                out.write(data)
-        finally:
-            os._exit(code)
-    os.close(w)
+class Forked(Generic[T]):
+    """``fn()`` started in a forked child (if it can be); ``result()`` waits for it."""
 
-    def join() -> T | None:
-        with os.fdopen(r, "rb") as inp:
-            data = inp.read()
-        os.waitpid(pid, 0)
+    def __init__(self, fn: Callable[[], T]) -> None:
+        self._pid = 0
+        self._read = -1
+        if not hasattr(os, "fork") or threading.active_count() > 1:
+            return
+        try:
+            r, w = os.pipe()
+        except OSError:
+            return
+        try:
+            pid = os.fork()
+        except OSError:
+            os.close(r)
+            os.close(w)
+            return
+        if pid == 0:  # the child: compute, send, and leave without running any exit handler
+            code = 1
+            try:
+                os.close(r)
+                try:
+                    data = pickle.dumps(("ok", fn()), protocol=pickle.HIGHEST_PROTOCOL)
+                    code = 0
+                except BaseException as exc:  # whatever it was, the parent computes it
+                    data = pickle.dumps(("error", type(exc).__name__))
+                with os.fdopen(w, "wb") as out:
+                    out.write(data)
+            finally:
+                os._exit(code)
+        os.close(w)
+        self._pid, self._read = pid, r
+
+    def result(self) -> T | None:
+        """The child's value, or None (no child, or it failed); reaps the child."""
+        if self._pid == 0:
+            return None
+        try:
+            with os.fdopen(self._read, "rb") as inp:
+                data = inp.read()
+        finally:
+            self._read = -1
+            self._reap()
         try:
             status, value = pickle.loads(data)
         except Exception:  # a child killed mid-write: computed here
             return None
         return value if status == "ok" else None
 
-    return join
+    def cancel(self) -> None:
+        """Kill the child (if still there) and reap it; its value is dropped."""
+        if self._pid == 0:
+            return
+        if self._read >= 0:
+            os.close(self._read)
+            self._read = -1
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(self._pid, signal.SIGKILL)
+        self._reap()
+
+    def _reap(self) -> None:
+        pid, self._pid = self._pid, 0
+        with contextlib.suppress(ChildProcessError):  # SIGCHLD ignored: reaped already
+            os.waitpid(pid, 0)
+
+    def __enter__(self) -> Forked[T]:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.cancel()  # a no-op once result() has reaped it
