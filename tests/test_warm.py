@@ -30,3 +30,30 @@ def test_every_group_step_is_known_and_an_unknown_one_refused() -> None:
 
 def test_default_jobs_is_at_most_the_groups_and_at_least_one() -> None:
     assert 1 <= warm._default_jobs() <= len(warm.GROUPS)
+
+
+def test_a_process_outside_make_finds_the_warm_cache() -> None:
+    """``.venv/bin/railtwin`` run from a shell (no ``NUMBA_CACHE_DIR``) uses the cache that
+    ``make venv`` filled, ``<venv>/numba-cache``: a fresh clone's first ``railtwin
+    diagnose`` took 74 s compiling into ``__pycache__`` before; a set variable is kept."""
+    import os
+    import subprocess
+    import sys
+
+    code = "import os, sim_core; print(os.environ.get('NUMBA_CACHE_DIR', ''))"
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+    got = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+    ).stdout.strip()
+    if sys.prefix == sys.base_prefix:
+        assert got == ""  # not in a venv: numba's own default
+    else:
+        assert got == os.path.join(sys.prefix, "numba-cache")
+    kept = subprocess.run(
+        [sys.executable, "-c", code],
+        env={**env, "NUMBA_CACHE_DIR": "/tmp/elsewhere-cache"},
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.strip()
+    assert kept == "/tmp/elsewhere-cache"

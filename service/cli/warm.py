@@ -32,6 +32,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+import sim_core  # noqa: F401  (first: it points numba's cache at the venv's, sim_core/__init__)
+
 ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_SITE = ROOT / "examples" / "site.toml"
 
