@@ -6,14 +6,15 @@
 #   make bench    run the benchmarks (benchmarks/run_all.py)
 #   make figures  draw the paper's figures into figures/
 #   make soak     20 000-passage burst (memory must plateau), kill -9 mid-stream, recover (minutes)
-#   make validate the wheel-flat diagnosis: independent wide set + own generator (~5 min)
+#   make validate the wheel-flat diagnosis: independent wide set + own generator, railtwin diagnose timed (~1.5 min)
 #   make lint     ruff and mypy only
 #   make fleet-demo  router, three site twins, the fleet service, a growing flat's alarms (minutes)
 #   make fleet-bench the fleet at scale: 100 sites through a router, 10^6 rows, SQLite and PostgreSQL
 #
-# The venv is (re)installed only when pyproject.toml changes (stamp file); installing
-# also compiles the physics into numba's cache (`railtwin warm`, its independent parts in
-# parallel), so that the first `make demo` or `make test` loads it instead of compiling.
+# The venv is (re)installed only when pyproject.toml changes (stamp file); after installing,
+# the physics is compiled into numba's cache (`railtwin warm`, its independent parts in
+# parallel; a stamp inside the cache, so `make clean` makes the next target warm it again),
+# and the first `make demo` or `make test` loads it instead of compiling.
 
 PYTHON ?= python3
 VENV   ?= .venv
@@ -23,6 +24,7 @@ STAMP  := $(VENV)/.installed-stamp
 # numba's compile cache: inside the (git-ignored) venv so that a read-only
 # site-packages or a fresh CI checkout never matters, and runs reuse it.
 export NUMBA_CACHE_DIR ?= $(CURDIR)/$(VENV)/numba-cache
+WARMED := $(NUMBA_CACHE_DIR)/.warmed-stamp
 # Rerun's CLI asks about analytics on first run; keep CI and tests quiet.
 export RERUN_ANALYTICS ?= 0
 export PIP_DISABLE_PIP_VERSION_CHECK := 1
@@ -40,13 +42,17 @@ $(BIN)/python:
 # pip upgrade, which cost a round trip to the index and a reinstall on every fresh venv.)
 $(STAMP): pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet -e '.[test]'
-	$(BIN)/python -m service.cli.warm
 	touch $(STAMP)
 
-venv: $(STAMP)
+$(WARMED): $(STAMP)
+	$(BIN)/python -m service.cli.warm
+	mkdir -p $(NUMBA_CACHE_DIR) && touch $(WARMED)
+
+venv: $(WARMED)
 
 warm: $(STAMP)
 	$(BIN)/python -m service.cli.warm
+	mkdir -p $(NUMBA_CACHE_DIR) && touch $(WARMED)
 
 ruff: $(STAMP)
 	$(BIN)/ruff check .
@@ -57,11 +63,11 @@ mypy: $(STAMP)
 
 lint: ruff mypy
 
-pytest: $(STAMP)
+pytest: $(WARMED)
 	$(BIN)/python -m pytest -q
 
 # Runs all three checks even when one fails, then fails if any did.
-test: $(STAMP)
+test: $(WARMED)
 	@failed=""; \
 	echo "== ruff =="; $(BIN)/ruff check . || failed="$$failed ruff"; \
 	echo "== ruff format =="; $(BIN)/ruff format --check . || failed="$$failed ruff-format"; \
@@ -70,25 +76,25 @@ test: $(STAMP)
 	if [ -n "$$failed" ]; then echo "make test: FAILED:$$failed" >&2; exit 1; fi; \
 	echo "make test: all checks passed"
 
-demo: $(STAMP)
+demo: $(WARMED)
 	$(BIN)/python -m service.cli demo
 
-bench: $(STAMP)
+bench: $(WARMED)
 	$(BIN)/python -m benchmarks.run_all
 
-fleet-demo: $(STAMP)
+fleet-demo: $(WARMED)
 	$(BIN)/python -m service.cli.fleet_demo
 
-fleet-bench: $(STAMP)
+fleet-bench: $(WARMED)
 	$(BIN)/python -m benchmarks.fleet_bench
 
-soak: $(STAMP)
+soak: $(WARMED)
 	$(BIN)/python -m benchmarks.soak
 
-validate: $(STAMP)
+validate: $(WARMED)
 	nice -n 5 $(BIN)/python -m validation.diagnosis_validation
 
-figures: $(STAMP)
+figures: $(WARMED)
 	$(BIN)/python -m service.cli figures --out figures/
 
 clean:
