@@ -51,7 +51,8 @@ def test_no_fork_while_other_threads_run() -> None:
     other.start()
     try:
         with Forked(lambda: 1) as child:
-            assert child._pid == 0 and child.result() is None  # the caller computes it
+            assert child._pid == 0 and child.result() is None
+            assert child.value() == 1  # computed here instead
     finally:
         stop.set()
         other.join()

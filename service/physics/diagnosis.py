@@ -364,9 +364,7 @@ class Diagnoser:
         if self.cores > 1:  # a forked child runs every other one
             with Forked(lambda: [peak(r) for r in runs[::2]]) as forked:
                 mine = [peak(r) for r in runs[1::2]]
-                theirs = forked.result()
-            if theirs is None:
-                theirs = [peak(r) for r in runs[::2]]
+                theirs = forked.value()
             got = [point, *theirs, *mine]
         else:
             got = [point, *map(peak, runs)]

@@ -46,6 +46,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field, replace
+from itertools import takewhile
 
 import numba
 import numpy as np
@@ -260,7 +261,7 @@ class _Problem:
     def evaluate(
         self, kind: FlatKind, length: float, zeta: float, depth_factor: float = 1.0
     ) -> Candidate:
-        key = (kind, round(length, 9), round(zeta, 9), round(depth_factor, 6))
+        key = _key(kind, length, zeta, depth_factor)
         got = self.evaluated.get(key)
         if got is not None:
             return got
@@ -272,9 +273,10 @@ class _Problem:
             except IntegrationError:
                 if a == 0:
                     # a candidate the integrator cannot resolve explains nothing
-                    cand = Candidate(kind, length, zeta, math.inf, np.full(len(self.win), np.nan))
-                    self.evaluated[key] = replace(cand, depth_factor=depth_factor)
-                    return self.evaluated[key]
+                    nan = np.full(len(self.win), np.nan)
+                    cand = Candidate(kind, length, zeta, math.inf, nan, depth_factor)
+                    self.evaluated[key] = cand
+                    return cand
         half = 0.5 * length / self.speed
         windows = [(self.t[i0:i1], self.f[i0:i1]) for i0, i1 in self.win]
         centres, total = _align_periodic(
@@ -368,6 +370,20 @@ def _add_on_grid(
                 total[i, j] += cost[k] + (u - k) * (cost[k + 1] - cost[k])
 
 
+def _arrival_costs(
+    templates: list[tuple[NDArray[np.float64], NDArray[np.float64]]],
+    tw: NDArray[np.float64],
+    fw: NDArray[np.float64],
+    shifts: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """``_window_costs`` of the window for each shift, the cheapest over ``templates`` (the
+    rolling arrival first, then ``arrival_lifts``'): the window arrives in whichever fits."""
+    cost = _window_costs(*templates[0], tw, fw, shifts)
+    for tau, tf in templates[1:]:
+        np.minimum(cost, _window_costs(tau, tf, tw, fw, shifts), out=cost)
+    return cost
+
+
 def _align_periodic(
     templates: list[tuple[NDArray[np.float64], NDArray[np.float64]]],
     windows: list[tuple[NDArray[np.float64], NDArray[np.float64]]],
@@ -399,9 +415,7 @@ def _align_periodic(
         lo = s0_grid[0] + n[k] * t_lo - SHIFT_STEP
         hi = s0_grid[-1] + n[k] * t_hi + SHIFT_STEP
         sk = np.arange(lo, hi + 0.5 * SHIFT_STEP, SHIFT_STEP)
-        ck = _window_costs(*templates[0], tw, fw, sk)
-        for tau, tf in templates[1:]:  # each window arrives in whichever state fits it
-            np.minimum(ck, _window_costs(tau, tf, tw, fw, sk), out=ck)
+        ck = _arrival_costs(templates, tw, fw, sk)
         _add_on_grid(total, s0_grid, float(n[k]), t_grid, float(sk[0]), SHIFT_STEP, ck)
     i, j = np.unravel_index(int(np.argmin(total)), total.shape)
     s0, period = float(s0_grid[i]), float(t_grid[j])
@@ -411,10 +425,7 @@ def _align_periodic(
     best = np.zeros((fine_s.size, fine_t.size))
     for k, (tw, fw) in enumerate(windows):
         shifts = (fine_s[:, None] + n[k] * fine_t[None, :]).ravel()
-        ck = _window_costs(*templates[0], tw, fw, shifts)
-        for tau, tf in templates[1:]:
-            np.minimum(ck, _window_costs(tau, tf, tw, fw, shifts), out=ck)
-        best += ck.reshape(best.shape)
+        best += _arrival_costs(templates, tw, fw, shifts).reshape(best.shape)
     i, j = np.unravel_index(int(np.argmin(best)), best.shape)
     s0, period = float(fine_s[i]), float(fine_t[j])
     return s0 + n * period, float(best[i, j])
@@ -484,9 +495,11 @@ def detection_floor(speed: float, options: FitOptions = DEFAULT_OPTIONS) -> floa
     return options.min_length + u * (options.min_length_fast - options.min_length)
 
 
-def _key(c: Candidate) -> tuple[str, float, float, float]:
+def _key(
+    kind: str, length: float, zeta: float, depth_factor: float
+) -> tuple[str, float, float, float]:
     """A candidate's key in ``_Problem.evaluated``."""
-    return (c.kind, round(c.length, 9), round(c.zeta, 9), round(c.depth_factor, 6))
+    return (kind, round(length, 9), round(zeta, 9), round(depth_factor, 6))
 
 
 def _search_kind(
@@ -606,6 +619,21 @@ def _golden(fn: object, lo: float, hi: float, n: int) -> None:
 WALK_STEPS = (0.06, 0.15, 0.3, 0.5)
 """Relative steps in length by which the interval is walked out from a kind's best, each
 side, until the cost passes the χ² band's bound."""
+
+
+def _walk(length: float, longest: float) -> tuple[list[float], list[float]]:
+    """The lengths the interval is walked out to from ``length``, shorter side then longer
+    side, each in walking order, within 2 mm … 2 × ``longest``."""
+    shorter, longer = (
+        list(
+            takewhile(
+                lambda ln: 0.002 <= ln <= 2.0 * longest,
+                (length * (1.0 + direction * step) for step in WALK_STEPS),
+            )
+        )
+        for direction in (-1.0, 1.0)
+    )
+    return shorter, longer
 
 
 def _same_depth(cand: Candidate, length: float) -> float:
@@ -1081,23 +1109,17 @@ def estimate_flat(
             # the interval's walk around it, ahead of knowing how far it goes (the child
             # has time while the other kind's depth is fitted; the walk then finds these;
             # those it does not need stay in the profile only, never in the Diagnosis)
-            for direction in (-1.0, 1.0):
-                for step in WALK_STEPS:
-                    ln = got.length * (1.0 + direction * step)
-                    if 0.002 <= ln <= 2.0 * grid[-1]:
-                        _profile_cost(prob, got, ln, options)
+            for side in _walk(got.length, grid[-1]):
+                for ln in side:
+                    _profile_cost(prob, got, ln, options)
             return got, [c for c in prob.evaluated.values() if c.kind == first]
 
         with Forked(child) as forked:
             for kind in kinds[1:]:
                 best_of_kind[kind] = _search_kind(prob, kind, zetas, grid, options)
-            from_child = forked.result()
-        if from_child is None:  # no child's answer: the same search here
-            best_of_kind[first] = _search_kind(prob, first, zetas, grid, options)
-        else:
-            best_of_kind[first] = from_child[0]
-            for c in from_child[1]:
-                prob.evaluated.setdefault(_key(c), c)
+            best_of_kind[first], seen = forked.value()  # (here, if no child could)
+        for c in seen:
+            prob.evaluated.setdefault(_key(c.kind, c.length, c.zeta, c.depth_factor), c)
         best_of_kind = {k: best_of_kind[k] for k in kinds}
     else:
         for kind in kinds:
@@ -1116,11 +1138,8 @@ def estimate_flat(
     for cand in best_of_kind.values():
         if cand.cost > j_max and cand is not best:
             continue
-        for direction in (-1.0, 1.0):
-            for step in WALK_STEPS:
-                ln = cand.length * (1.0 + direction * step)
-                if not 0.002 <= ln <= 2.0 * grid[-1]:
-                    break
+        for side in _walk(cand.length, grid[-1]):
+            for ln in side:
                 if _profile_cost(prob, cand, ln, options) > j_max:
                     break
         k_lo, k_hi = _interval(_profile_points(prob, cand, options), j_max, cand.length)

@@ -7,12 +7,13 @@ the parent's memory copy-on-write, computes one kind, and sends its result back 
 through a pipe; the parent computes the other meanwhile.
 
     >>> with Forked(lambda: sum(range(10))) as child:
-    ...     child.result()
+    ...     child.value()
     45
 
 Where ``os.fork`` does not exist or fails, where other threads run (a fork would copy
 their locks, held or not), or where the child fails, ``result()`` gives ``None`` and the
-caller computes the value itself: the answer never depends on whether a child helped.
+value is computed here instead (``value()``): the answer never depends on whether a child
+helped.
 Leaving the ``with`` block without asking for the result (the parent's own half raised)
 kills the child and reaps it.
 """
@@ -37,6 +38,7 @@ class Forked(Generic[T]):
     """``fn()`` started in a forked child (if it can be); ``result()`` waits for it."""
 
     def __init__(self, fn: Callable[[], T]) -> None:
+        self._fn = fn
         self._pid = 0
         self._read = -1
         if not hasattr(os, "fork") or threading.active_count() > 1:
@@ -82,6 +84,11 @@ class Forked(Generic[T]):
         except Exception:  # a child killed mid-write: computed here
             return None
         return value if status == "ok" else None
+
+    def value(self) -> T:
+        """The child's value, or ``fn()`` computed in this process if there is none."""
+        got = self.result()
+        return self._fn() if got is None else got
 
     def cancel(self) -> None:
         """Kill the child (if still there) and reap it; its value is dropped."""
