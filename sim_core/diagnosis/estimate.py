@@ -682,22 +682,35 @@ def _profile_points(
 
 
 def _interval(points: list[tuple[float, float]], j_max: float, best: float) -> tuple[float, float]:
-    """Where the profile J(l) (sorted points) crosses j_max on each side of ``best``."""
+    """Where the profile J(l) (sorted points) crosses j_max on each side of ``best``.
+
+    Between the last point inside and the first outside, the crossing is interpolated in
+    sqrt(J - J_min), which is linear in the distance from the minimum where the profile is
+    a parabola. Interpolating J itself puts the crossing far too close to the inside point
+    when the outside one is many times j_max (a walk step that overshoots): with the
+    points J = 1 at the best and 30 at +6 %, and j_max = 2.28, J's own interpolation
+    gives +0.26 %, the parabola's +1.3 %.
+    """
     pts = sorted(points)
     ls = np.array([p[0] for p in pts])
     js = np.array([p[1] for p in pts])
     ib = int(np.argmin(np.abs(ls - best)))
+    j0 = min(float(js.min()), j_max)
+
+    def cross(i_in: int, i_out: int) -> float:
+        a, b, c = (math.sqrt(max(float(x) - j0, 0.0)) for x in (js[i_in], js[i_out], j_max))
+        u = (c - a) / (b - a) if b > a else 0.0
+        return float(ls[i_in] + u * (ls[i_out] - ls[i_in]))
+
     lo = ls[0]
     for i in range(ib, 0, -1):
         if js[i - 1] > j_max:
-            u = (j_max - js[i]) / (js[i - 1] - js[i])
-            lo = ls[i] + u * (ls[i - 1] - ls[i])
+            lo = cross(i, i - 1)
             break
     hi = ls[-1]
     for i in range(ib, ls.size - 1):
         if js[i + 1] > j_max:
-            u = (j_max - js[i]) / (js[i + 1] - js[i])
-            hi = ls[i] + u * (ls[i + 1] - ls[i])
+            hi = cross(i, i + 1)
             break
     return float(min(lo, best)), float(max(hi, best))
 
