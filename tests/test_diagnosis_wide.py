@@ -208,30 +208,57 @@ def test_diagnose_command_leaves_quickly_with_its_output_whole(tmp_path: Path) -
     assert bad.returncode == 2 and "missing.csv" in bad.stderr
 
 
-def test_a_depth_grid_finds_w39_which_the_default_search_misses() -> None:
-    """W39 (worn 107.7 mm, 0.8 x l²/16R, 28 km/h): the wheel follows the shallow flat, so
-    the dip's depth fixes the depth factor and its length the flat's; at the default search's
-    factor 1.0 no length fits and it settles on 57 mm, although the truth costs 19x less.
-    ``FitOptions.coarse_depth_factors`` over 0.7-1.3 finds it (docs/diagnosis.md: measured on
-    both sources, not kept: it doubles the fit's time and takes fresh flats for worn ones at
-    speed)."""
+def test_a_slow_wheels_depth_grid_finds_w39_which_one_depth_misses() -> None:
+    """W39 (worn 107.7 mm, 0.8 x l²/16R, 28 km/h): the wheel follows the shallow flat
+    (28 km/h against a following speed of 28.7 km/h), so the dip's depth fixes the depth
+    factor and its length the flat's. Searched at the factor 1.0 only, no length fits and
+    the fit settles on 57 mm, although the truth costs 19x less; a slow wheel's worn kind is
+    searched at the factors 0.8, 1.0, 1.2 (``FitOptions.slow_depth_factors``), which finds
+    it. Faster wheels keep the one factor (a worn flat's extra freedom takes fresh flats
+    for worn ones at speed: docs/diagnosis.md)."""
     from dataclasses import replace
 
-    from sim_core.diagnosis.estimate import DEFAULT_OPTIONS
+    from sim_core.diagnosis.estimate import DEFAULT_OPTIONS, following_speed
 
     c = load_case("W39")
     d = Diagnoser(c.site)
     wheel = d.wheel(c.passage)
+    assert c.passage.speed <= DEFAULT_OPTIONS.slow_speed_ratio * following_speed(wheel)
     t = c.measured.t_start + np.arange(c.measured.samples) / c.measured.sample_rate
     f = np.asarray(c.measured.force)
     true_length = float(c.truth["flat_length_m"])
-    default = estimate_flat(wheel, c.passage.speed, t, f, d.sensor)
-    assert abs(default.best_length - true_length) > _tolerance(true_length)
-    grid = replace(DEFAULT_OPTIONS, coarse_depth_factors=(0.7, 0.8, 0.9, 1.0, 1.1, 1.2, 1.3))
-    found = estimate_flat(wheel, c.passage.speed, t, f, d.sensor, grid)
+    one_depth = estimate_flat(
+        wheel, c.passage.speed, t, f, d.sensor, replace(DEFAULT_OPTIONS, slow_speed_ratio=0.0)
+    )
+    assert abs(one_depth.best_length - true_length) > _tolerance(true_length)
+    found = estimate_flat(wheel, c.passage.speed, t, f, d.sensor)
     assert found.best_kind == "rounded_flat"
     assert abs(found.best_length - true_length) <= _tolerance(true_length)
-    assert found.cost_best < 0.2 * default.cost_best
+    assert found.cost_best < 0.2 * one_depth.cost_best
+    assert found.length_low <= true_length <= found.length_high
+
+
+def test_only_slow_wheels_get_the_depth_grid() -> None:
+    """The worn kind's coarse grid spans depth factors up to 1.5 x the following speed
+    sqrt(8RP/m)/π, at the middle damping ratio; above it, the factor 1.0 alone."""
+    from sim_core.diagnosis.estimate import DEFAULT_OPTIONS, _coarse_keys, following_speed
+
+    c = load_case("W39")
+    wheel = Diagnoser(c.site).wheel(c.passage)
+    vc = following_speed(wheel)
+    zetas, grid = (0.04, 0.08, 0.16), (0.02, 0.05)
+
+    class _P:  # what _coarse_keys reads of a problem
+        def __init__(self, speed: float) -> None:
+            self.speed, self.wheel = speed, wheel
+
+    kinds = ("flat", "rounded_flat")
+    slow = _coarse_keys(_P(1.5 * vc), kinds, zetas, grid, DEFAULT_OPTIONS)  # type: ignore[arg-type]
+    fast = _coarse_keys(_P(1.5001 * vc), kinds, zetas, grid, DEFAULT_OPTIONS)  # type: ignore[arg-type]
+    assert {k[3] for k in fast} == {1.0} and len(fast) == 2 * 3 * 2
+    assert {k[3] for k in slow if k[0] == "rounded_flat"} == {0.8, 1.0, 1.2}
+    assert {k[2] for k in slow if k[3] != 1.0} == {0.08}
+    assert len(slow) == len(fast) + 2 * 2
 
 
 def test_a_simulation_the_integrator_cannot_resolve_still_gets_a_verdict(

@@ -145,6 +145,8 @@ class FitOptions:
     cores: int = 1
     depth_profile: bool = True
     coarse_depth_factors: tuple[float, ...] = (1.0,)
+    slow_depth_factors: tuple[float, ...] = (0.8, 1.0, 1.2)
+    slow_speed_ratio: float = 1.5
     arrival_lifts: tuple[float, ...] = ()
 
 
@@ -502,6 +504,48 @@ def _key(
     return (kind, round(length, 9), round(zeta, 9), round(depth_factor, 6))
 
 
+def following_speed(wheel: WheelOnSite) -> float:
+    """m/s: the speed up to which a rigid wheel keeps contact over a worn flat of depth
+    l²/16R, sqrt(8·R·P/m)/π (the same for every length).
+
+    A haversine dip of depth d over the length l asks the wheel's centre for a downward
+    acceleration of up to 2π²·d·V²/l²; contact is lost where that exceeds P/m. With
+    d = l²/16R, V_c = sqrt(8RP/m)/π: 20-35 km/h for the wheels of the validation sets.
+
+    >>> round(following_speed(WheelOnSite(537.8, 96762.0, 0.4353, None)) * 3.6, 1)  # W39's
+    28.7
+    """
+    return math.sqrt(8.0 * wheel.radius * wheel.load / wheel.mass) / math.pi
+
+
+def _coarse_keys(
+    prob: _Problem,
+    kinds: tuple[FlatKind, ...],
+    zetas: tuple[float, ...],
+    grid: tuple[float, ...],
+    options: FitOptions,
+) -> list[tuple[FlatKind, float, float, float]]:
+    """(kind, length, ζ, depth factor) of every kinds' coarse grid, in the order searched.
+
+    A worn flat is searched at several depth factors where the wheel (nearly) follows it
+    (``slow_speed_ratio`` × ``following_speed``): the dip's shape then carries the depth
+    apart from the length, and a long shallow flat fits no length at the factor 1.0. Faster,
+    the wheel leaves the flat and depth, length and kind blur, so the extra freedom would
+    only take fresh flats for worn ones (docs/diagnosis.md)."""
+    slow = prob.speed <= options.slow_speed_ratio * following_speed(prob.wheel)
+    keys: list[tuple[FlatKind, float, float, float]] = []
+    for kind in kinds:
+        dfs: tuple[float, ...] = (1.0,)
+        if kind == "rounded_flat":
+            dfs = options.slow_depth_factors if slow else options.coarse_depth_factors
+        for df in dfs:
+            # away from the factor 1.0 at the middle damping ratio only (the site's, where
+            # it states one): the refinement that follows fits the ratio again
+            zs = zetas if df == 1.0 else zetas[len(zetas) // 2 : len(zetas) // 2 + 1]
+            keys += [(kind, ln, z, df) for z in zs for ln in grid]
+    return keys
+
+
 def _search_kind(
     prob: _Problem,
     kind: FlatKind,
@@ -511,11 +555,8 @@ def _search_kind(
 ) -> Candidate:
     """The best ``kind`` of flat: the coarse grid, the length and damping refined, a worn
     flat's depth fitted."""
-    dfs = options.coarse_depth_factors if kind == "rounded_flat" else (1.0,)
-    for df in dfs:
-        for z in zetas:
-            for ln in grid:
-                prob.evaluate(kind, ln, z, df)
+    for key in _coarse_keys(prob, (kind,), zetas, grid, options):
+        prob.evaluate(*key)
     cur = _best(prob, kind, depth_factor=None)
     got = _refine(
         prob,
