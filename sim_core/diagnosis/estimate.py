@@ -120,6 +120,15 @@ class FitOptions:
     1.0 only). A grid over 0.7-1.3 finds long shallow worn flats followed at low speed
     (W39) but doubles the fit's time and takes fresh flats at speed for worn ones; measured,
     not kept (docs/diagnosis.md).
+
+    ``slow_depth_factors`` / ``slow_speed_ratio``: below ``slow_speed_ratio`` ×
+    ``following_speed`` the wheel follows a worn flat and its depth is told from its
+    length, so the worn kind's coarse grid spans these factors (at the middle damping
+    ratio); faster, ``coarse_depth_factors``.
+
+    ``small_flat_floors``: a flat whose length interval lies wholly below this many times
+    the detection floor and reaches below ``min_length`` is not told from a round wheel on
+    an unknown rough rail, and is not reported (unless it stands out, ``contrast``).
     """
 
     lengths: tuple[float, ...] = LENGTH_GRID
@@ -147,6 +156,7 @@ class FitOptions:
     coarse_depth_factors: tuple[float, ...] = (1.0,)
     slow_depth_factors: tuple[float, ...] = (0.8, 1.0, 1.2)
     slow_speed_ratio: float = 1.5
+    small_flat_floors: float = 2.0
     arrival_lifts: tuple[float, ...] = ()
 
 
@@ -1210,6 +1220,13 @@ def estimate_flat(
     # once-per-turn windows fit it far better than windows a fraction of a turn away
     standout = contrast >= options.contrast and best.length >= options.min_length_contrast
     found = significance >= options.detection and (best.length >= floor or standout)
+    # a small flat on an unknown rough rail: where the whole interval lies below
+    # ``small_flat_floors`` x the floor and reaches below the shortest flat searched, the
+    # record does not tell it from a round wheel (the significance alone does not: every
+    # candidate's windows are aligned in time, a round wheel's are not)
+    small = hi < options.small_flat_floors * floor
+    if found and small and lo < options.min_length and not standout:
+        found = False
     flat: Flat | None = None
     if found:
         phases = np.exp(1j * (-(v * best.centres) / R))
