@@ -1219,14 +1219,14 @@ def estimate_flat(
     # below the floor, a flat is reported only if it stands out of its own record: its
     # once-per-turn windows fit it far better than windows a fraction of a turn away
     standout = contrast >= options.contrast and best.length >= options.min_length_contrast
-    found = significance >= options.detection and (best.length >= floor or standout)
     # a small flat on an unknown rough rail: where the whole interval lies below
     # ``small_flat_floors`` x the floor and reaches below the shortest flat searched, the
     # record does not tell it from a round wheel (the significance alone does not: every
     # candidate's windows are aligned in time, a round wheel's are not)
-    small = hi < options.small_flat_floors * floor
-    if found and small and lo < options.min_length and not standout:
-        found = False
+    like_round = hi < options.small_flat_floors * floor and lo < options.min_length
+    found = significance >= options.detection and (
+        standout or (best.length >= floor and not like_round)
+    )
     flat: Flat | None = None
     if found:
         phases = np.exp(1j * (-(v * best.centres) / R))
