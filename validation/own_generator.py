@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 import sys
 import time
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -25,7 +26,7 @@ from schemas.site import SiteConfig
 from service.clients.synthesize import measure
 from service.physics.diagnosis import Diagnoser
 from sim_core.diagnosis.forward import Flat, damping_for_ratio
-from sim_core.diagnosis.synthetic import Perturbations, synthetic_measurement
+from sim_core.diagnosis.synthetic import Perturbations, SyntheticMeasurement, synthetic_measurement
 from sim_core.passage import Foundation
 from validation.wide_set import fitted_fields
 
@@ -85,11 +86,36 @@ def draw_case(
     return kind, tread, site, p, zeta
 
 
-def run_case(i: int, rng: np.random.Generator) -> dict[str, Any]:
+def draw_record(rng: np.random.Generator) -> tuple[int, float, float]:
+    """(seed, noise fraction, roughness rms) of a case's record, drawn after the case."""
+    return (
+        int(rng.integers(2**31)),
+        float(rng.uniform(0.01, 0.03)),
+        float(rng.uniform(2e-6, 10e-6)),
+    )
+
+
+@dataclass(frozen=True)
+class MeasuredCase:
+    """One case drawn and measured: the truth, the site's Diagnoser and the record."""
+
+    kind: str
+    tread: Flat | None
+    site: SiteConfig
+    passage: WheelPassage
+    damping_ratio: float
+    diagnoser: Diagnoser
+    synthesized: SyntheticMeasurement
+    measured: MeasuredPassage
+    seed: int
+    noise: float
+    roughness: float
+
+
+def measured_case(i: int, rng: np.random.Generator) -> MeasuredCase:
+    """Case ``i`` drawn from ``rng`` (``draw_case``, ``draw_record``) and measured."""
     kind, tread, site, p, zeta = draw_case(i, rng)
-    seed = int(rng.integers(2**31))
-    noise = float(rng.uniform(0.01, 0.03))
-    rough = float(rng.uniform(2e-6, 10e-6))
+    seed, noise, rough = draw_record(rng)
     d = Diagnoser(site)
     m = measure(
         site, p, tread, seed=seed, noise=noise, roughness=rough, damping_ratio=None, diagnoser=d
@@ -99,6 +125,28 @@ def run_case(i: int, rng: np.random.Generator) -> dict[str, Any]:
         sample_rate=m.sample_rate,
         t_start=m.t_start,
         force=m.force.tolist(),
+    )
+    return MeasuredCase(kind, tread, site, p, zeta, d, m, mp, seed, noise, rough)
+
+
+def skip_cases(n: int, rng: np.random.Generator) -> None:
+    """Draw what the first ``n`` cases draw, without simulating them (``rng`` then gives
+    case ``n`` as ``run_all`` would)."""
+    for i in range(n):
+        draw_case(i, rng)
+        draw_record(rng)
+
+
+def run_case(i: int, rng: np.random.Generator) -> dict[str, Any]:
+    c = measured_case(i, rng)
+    kind, tread, site, p, zeta = c.kind, c.tread, c.site, c.passage, c.damping_ratio
+    d, m, mp, seed, noise, rough = (
+        c.diagnoser,
+        c.synthesized,
+        c.measured,
+        c.seed,
+        c.noise,
+        c.roughness,
     )
     cpu = time.process_time()
     diag, curves = d.diagnose(p, mp)
@@ -144,4 +192,13 @@ def run_all(n: int, seed: int) -> list[dict[str, Any]]:
     return rows
 
 
-__all__ = ["LINE_SPEED", "draw_case", "run_all", "run_case"]
+__all__ = [
+    "LINE_SPEED",
+    "MeasuredCase",
+    "draw_case",
+    "draw_record",
+    "measured_case",
+    "run_all",
+    "run_case",
+    "skip_cases",
+]
