@@ -9,6 +9,18 @@ as ``.venv/bin/railtwin diagnose`` from a shell, gets the same directory when it
 virtual environment and ``NUMBA_CACHE_DIR`` is not set; else numba's default applies
 (``__pycache__`` beside the sources), whose first use compiles everything again (74 s for
 ``railtwin diagnose`` on a fresh clone, measured).
+
+A second, for start-up time: numba initialises its CPU target on a process's first compile
+or cache load, and one of the modules it then imports (``numba.np.arraymath``) probes for
+BLAS with ``import scipy.linalg.cython_blas``. That statement runs all of
+``scipy/linalg/__init__.py`` (every decomposition and scipy's array-API layer, which touches
+``numpy.f2py`` and ``numpy.testing``): 0.1 s of the 0.2 s numba's first call costs on the
+project's machine, for code that calls no BLAS. The probe only needs the extension module,
+so ``_preload_cython_blas`` loads that one file (the same file scipy would load, under the
+same name) before numba looks; ``scipy.linalg`` is then imported only by code that uses it,
+and finds its submodule in ``sys.modules`` (reached by import, as numba reaches it, not as
+an attribute of ``scipy.linalg``). Anything unexpected leaves numba's own path.
+``tests/test_numba_startup.py`` checks that numba's BLAS and scipy.linalg still work.
 """
 
 import os as _os
@@ -29,4 +41,38 @@ def _default_numba_cache() -> None:
         _os.environ["NUMBA_CACHE_DIR"] = path
 
 
+def _preload_cython_blas() -> None:
+    name = "scipy.linalg.cython_blas"
+    if name in _sys.modules or "scipy.linalg" in _sys.modules:
+        return
+    if "numba.np.arraymath" in _sys.modules:  # too late: the probe has run
+        return
+    import importlib.machinery as _machinery
+    import importlib.util as _util
+
+    try:
+        scipy_spec = _util.find_spec("scipy")
+    except (ImportError, ValueError):
+        return
+    if scipy_spec is None or not scipy_spec.submodule_search_locations:
+        return
+    for root in scipy_spec.submodule_search_locations:
+        for suffix in _machinery.EXTENSION_SUFFIXES:
+            path = _os.path.join(root, "linalg", "cython_blas" + suffix)
+            if not _os.path.isfile(path):
+                continue
+            loader = _machinery.ExtensionFileLoader(name, path)
+            spec = _util.spec_from_file_location(name, path, loader=loader)
+            if spec is None:
+                return
+            module = _util.module_from_spec(spec)
+            _sys.modules[name] = module
+            try:
+                loader.exec_module(module)
+            except Exception:  # any failure: numba's own import path
+                del _sys.modules[name]
+            return
+
+
 _default_numba_cache()
+_preload_cython_blas()
