@@ -21,7 +21,13 @@ from schemas.messages import WheelPassage
 from schemas.site import SiteConfig
 from service.physics.measurement_error import MeasurementError
 from service.physics.site_physics import SitePhysics
-from sim_core.diagnosis.estimate import DEFAULT_OPTIONS, FlatEstimate, estimate_flat, make_flat
+from sim_core.diagnosis.estimate import (
+    DEFAULT_OPTIONS,
+    EXPLAINED_RATIO,
+    FlatEstimate,
+    estimate_flat,
+    make_flat,
+)
 from sim_core.diagnosis.forked import Forked
 from sim_core.diagnosis.forward import (
     Flat,
@@ -37,20 +43,13 @@ from sim_core.diagnosis.sensor import SensorModel
 from sim_core.diagnosis.verdict import Limits, verdict
 from sim_core.passage import IntegrationError
 
-__all__ = ["Diagnoser", "FitCurves", "IntegrationError", "MeasurementError"]
+__all__ = ["EXPLAINED_RATIO", "Diagnoser", "FitCurves", "IntegrationError", "MeasurementError"]
 
 MIN_RECORD_FRACTION = 0.5
 """A record must cover at least this fraction of the wheel's time on the site."""
 
 SPEED_MISMATCH = 0.05
 """A measured speed further than this (relative) from the passage's is refused."""
-
-EXPLAINED_RATIO = 8.0
-"""The fit explains the measurement when its rms residual over the windows is at most this
-many times the record's own noise σ. Above the noise, a right fit still leaves what the twin
-does not model: up to 10 µm of unknown rail roughness and the chaotic timing of the bounces
-(MODEL.md §7). On the project's own generator over the wide space (docs/diagnosis.md) the
-fits within tolerance have a median of 2.2x and most stay below 8; most wrong fits lie above."""
 
 LINE_DAMPING_BAND = 0.5
 """Relative band of the fitted damping ratio over which the line-speed forecast is taken."""
