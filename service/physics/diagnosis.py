@@ -232,7 +232,7 @@ class Diagnoser:
             # covers both
             stated = wheel.foundation.is_compliant and wheel.foundation.damping > 0.0
             line_wheel = wheel if stated else fit_wheel
-            at_line = self._line_peak(line_wheel, cfg.line_speed, flat, measured.sample_rate)
+            at_line = self.line_peak(line_wheel, cfg.line_speed, flat, measured.sample_rate)
             line_low, line_high = self._line_band(
                 wheel, cfg.line_speed, est, at_line, measured.sample_rate
             )
@@ -313,7 +313,7 @@ class Diagnoser:
         )
         return diag, FitCurves(t, t * est.speed, f, fitted, impacts, est)
 
-    def _line_peak(
+    def line_peak(
         self, wheel: WheelOnSite, line_speed: float, flat: Flat | None, sample_rate: float
     ) -> float | None:
         """The largest force the site would measure of ``wheel`` with ``flat`` at line speed
@@ -358,7 +358,7 @@ class Diagnoser:
                 runs += [(with_damping_ratio(wheel, z), flat) for z in sorted(zetas)]
 
         def peak(run: tuple[WheelOnSite, Flat]) -> float | None:
-            return self._line_peak(run[0], line_speed, run[1], sample_rate)
+            return self.line_peak(run[0], line_speed, run[1], sample_rate)
 
         if self.cores > 1:  # a forked child runs every other one
             with Forked(lambda: [peak(r) for r in runs[::2]]) as forked:

@@ -1,0 +1,150 @@
+"""What bounds the line-speed forecast: the true flat rolled by the twin (``make validate``).
+
+The diagnosis forecasts the peak force at line speed by rolling the *fitted* wheel over the
+site's rail. Before blaming the fit for a forecast outside ±20 % of the wide set's
+``line_speed_truth.json``, this asks what the twin gives with everything the fit estimates
+set to the truth: the true kind, length, depth and phase, the site's exact foundation, at
+the line speed. Two things remain that no fit can supply:
+
+- **the rail**: the truth rolled on 2-10 µm of roughness the site does not know; the twin
+  rolls on the site file's even rail;
+- **conditioning**: at low damping the wheel bounces over a long flat at 160 km/h and the
+  peak of the site is the peak of a chaotic sequence of landings. ``spread`` is the range
+  of the twin's own peak over perturbations no measurement resolves: the damping ratio
+  ±10 %, the line speed ±0.5 %, the flat's phase ±0.005 rad (2.3 mm of tread). Where that
+  range is wider than the ±20 % target, no point forecast can be held to it.
+
+    .venv/bin/python -m validation.forecast_bound [--only W08,W31]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import dataclass
+
+from service.physics.diagnosis import Diagnoser
+from sim_core.diagnosis.estimate import make_flat
+from sim_core.diagnosis.forward import damping_ratio_of, typical_rounded_depth, with_damping_ratio
+from validation.wide_set import case_ids, load_case
+
+TARGET = 0.2
+"""The issue's ±20 % on the point forecast."""
+
+PERTURBATIONS = (
+    (0.9, 0.0, 1.0),
+    (1.1, 0.0, 1.0),
+    (1.0, 0.0, 0.995),
+    (1.0, 0.0, 1.005),
+    (1.0, -0.005, 1.0),
+    (1.0, 0.005, 1.0),
+)
+"""(damping ratio ×, phase + rad, line speed ×) of the conditioning check."""
+
+
+@dataclass(frozen=True)
+class BoundRow:
+    """One flat of the wide set: the twin's peak at line speed with the true flat (N)."""
+
+    case: str
+    kind: str
+    length: float
+    zeta: float
+    truth: float
+    oracle: float
+    low: float
+    high: float
+
+    @property
+    def error(self) -> float:
+        return self.oracle / self.truth - 1.0
+
+    @property
+    def spread(self) -> float:
+        """(high - low) / oracle over the perturbations (and the oracle itself)."""
+        return (self.high - self.low) / self.oracle
+
+    @property
+    def ill_conditioned(self) -> bool:
+        return self.spread > 2.0 * TARGET
+
+
+def bound_row(case_id: str) -> BoundRow | None:
+    """The twin's line-speed peak with the true flat, or None (a round wheel, no truth, or
+    a passage the integrator does not resolve)."""
+    c = load_case(case_id)
+    tr = c.truth
+    if not tr["kind"] or c.line_peak_measured is None or c.site.diagnosis.line_speed is None:
+        return None
+    d = Diagnoser(c.site)
+    wheel = d.wheel(c.passage)
+    radius, length = c.passage.radius, float(tr["flat_length_m"])
+    depth_factor = 1.0
+    if tr["kind"] == "rounded_flat":
+        depth_factor = float(tr["flat_depth_m"]) / typical_rounded_depth(radius, length)
+    flat = make_flat(radius, tr["kind"], length, depth_factor)
+    zeta = damping_ratio_of(wheel.foundation)
+    line, rate = c.site.diagnosis.line_speed, c.measured.sample_rate
+    peaks: list[float] = []
+    for dz, dphi, dv in ((1.0, 0.0, 1.0), *PERTURBATIONS):
+        got = d.line_peak(
+            with_damping_ratio(wheel, zeta * dz),
+            line * dv,
+            flat.with_phase(float(tr["phi0"]) + dphi),
+            rate,
+        )
+        if got is None:
+            if not peaks:
+                return None
+            continue
+        peaks.append(got)
+    return BoundRow(
+        case_id, tr["kind"], length, zeta, c.line_peak_measured, peaks[0], min(peaks), max(peaks)
+    )
+
+
+def bound_rows(ids: list[str]) -> list[BoundRow]:
+    return [r for r in (bound_row(cid) for cid in ids) if r is not None]
+
+
+def summary(rows: list[BoundRow]) -> str:
+    n = len(rows)
+    ok = [r for r in rows if abs(r.error) <= TARGET]
+    miss = [r for r in rows if abs(r.error) > TARGET]
+    ill = [r for r in miss if r.ill_conditioned and r.low <= r.truth <= r.high]
+    rail = [r for r in miss if r not in ill]
+    lines = [
+        "| case | kind | length mm | ζ | truth kN | twin, true flat kN | error | "
+        "spread kN (±10 % ζ, ±0.5 % V, ±0.005 rad) |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for r in miss:
+        lines.append(
+            f"| {r.case} | {r.kind} | {r.length * 1e3:.1f} | {r.zeta:.3f} | {r.truth / 1e3:.0f} "
+            f"| {r.oracle / 1e3:.0f} | {r.error * 100:+.0f} % | {r.low / 1e3:.0f}-"
+            f"{r.high / 1e3:.0f} ({r.spread * 100:.0f} %) |"
+        )
+    lines += [
+        "",
+        f"- the true flat rolled by the twin: within ±20 % of the truth for {len(ok)}/{n}",
+        f"- of the {len(miss)} outside: {len(ill)} ill-conditioned (the twin's own peak spreads "
+        f"over more than ±20 % under the perturbations, and the truth is inside that spread: "
+        f"{', '.join(r.case for r in ill) or 'none'}); {len(rail)} where the even rail's twin "
+        f"itself is off ({', '.join(r.case for r in rail) or 'none'})",
+    ]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(
+        prog="python -m validation.forecast_bound", description=__doc__.split("\n")[0]
+    )
+    p.add_argument("--only", default=None, help="comma-separated case ids")
+    a = p.parse_args(argv)
+    ids = a.only.split(",") if a.only else case_ids()
+    print(summary(bound_rows(ids)))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
