@@ -12,7 +12,8 @@ Prints, per source, the table per kind × speed band × damping band (length err
 median/worst, within max(5 mm, 10 %), kind, length-interval coverage, line-speed forecast
 within ±20 % and its interval's coverage, wall time), then false alarms, missed
 ``remove``, unexplained fits and timings; for (a), what bounds the forecast (the true flat
-rolled by the twin, ``validation.forecast_bound``); then ``railtwin diagnose`` as a command, timed on
+rolled by the twin, ``validation.forecast_bound``) and each length or kind miss (the
+truth's cost on the fit's windows, ``validation.fit_bound``); then ``railtwin diagnose`` as a command, timed on
 every wide-set passage (``validation.cli_timing``). Writes every case to ``--out``.
 """
 
@@ -156,7 +157,7 @@ def main(argv: list[str] | None = None) -> int:
         p.error(f"--seeds must be comma-separated integers, got {a.seeds!r}")
     # compile the kernels first (a cold numba cache takes minutes): the timings are the fits'
     from service.physics.diagnosis import Diagnoser
-    from validation import cli_timing, forecast_bound, own_generator, wide_set
+    from validation import cli_timing, fit_bound, forecast_bound, own_generator, wide_set
 
     Diagnoser(wide_set.load_case(wide_set.case_ids()[0]).site).warm_up()
     start = time.perf_counter()
@@ -169,6 +170,11 @@ def main(argv: list[str] | None = None) -> int:
         "(validation.forecast_bound)\n"
     )
     print(forecast_bound.summary(forecast_bound.bound_rows(wide_set.case_ids())))
+    print(
+        "\n### What bounds each length and kind miss: the truth's cost on the fit's windows "
+        "(validation.fit_bound)\n"
+    )
+    print(fit_bound.summary(fit_bound.fit_rows(wide_set.case_ids())))
     for k, seed in enumerate(seeds if a.own > 0 else []):
         own = own_generator.run_all(a.own, seed)
         results["own" if k == 0 else f"own_{seed}"] = own

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -198,8 +199,15 @@ class Diagnoser:
         return speed
 
     def diagnose(
-        self, passage: WheelPassage, measured: MeasuredPassage
+        self,
+        passage: WheelPassage,
+        measured: MeasuredPassage,
+        compare: Sequence[tuple[FlatKind, float, float]] = (),
     ) -> tuple[Diagnosis, FitCurves]:
+        """The ``Diagnosis`` of one measured passage, and what a recording draws of it.
+
+        ``compare``: flats (kind, length, depth factor) whose cost on the fit's own windows
+        comes back in ``FitCurves.estimate.compared`` (validation compares the truth's)."""
         start = time.perf_counter()
         speed = self.check(passage, measured)
         wheel = self.wheel(passage)
@@ -208,7 +216,9 @@ class Diagnoser:
         # a round wheel on the site's own rail, as measured: what the screen compares with
         # (should the integrator not resolve it, the screen compares with the static load)
         baseline = self._measure_or_none(wheel, speed, None, float(t[0]), float(t[-1]), t)
-        est = estimate_flat(wheel, speed, t, f, self.sensor, self.options, baseline=baseline)
+        est = estimate_flat(
+            wheel, speed, t, f, self.sensor, self.options, baseline=baseline, compare=compare
+        )
         fit_wheel = with_damping_ratio(wheel, est.damping_ratio)
         fitted = baseline
         if not est.screened:

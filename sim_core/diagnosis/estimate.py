@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from itertools import takewhile
 
@@ -205,6 +206,7 @@ class FlatEstimate:
     interval_kinds: tuple[FlatKind, ...] = ()
     noise_level: float = 0.0
     screened: bool = False
+    compared: tuple[float, ...] = ()
 
     @property
     def fit_rms(self) -> float:
@@ -1036,12 +1038,16 @@ def estimate_flat(
     sensor: SensorModel,
     options: FitOptions = DEFAULT_OPTIONS,
     baseline: NDArray[np.float64] | None = None,
+    compare: Sequence[tuple[FlatKind, float, float]] = (),
 ) -> FlatEstimate:
     """Fit a flat to the measured ``force`` at times ``t`` (s; t = 0 at the site's start).
 
     ``speed`` is the best speed known (measured or reported); the turn spacing refines it.
     ``baseline``: a round wheel's force on the site's own rail as the site would measure it
     at ``t`` (the screen compares the record with it; default: the static load).
+    ``compare``: (kind, length, depth factor) of flats whose cost on the fit's own windows
+    is returned in ``compared`` (the lowest over the best damping ratio and those searched),
+    to set against ``cost_best``: validation asks it of the truth. Nothing else changes.
     """
     start = time.perf_counter()
     t = np.asarray(t, dtype=np.float64)
@@ -1251,6 +1257,10 @@ def estimate_flat(
     profile = tuple(
         (c.kind, c.length, c.cost) for c in sorted(at_zeta, key=lambda c: (c.kind, c.length))
     )
+    compared = tuple(
+        min(prob.evaluate(kind, ln, z, df).cost for z in {best.zeta, *zetas})
+        for kind, ln, df in compare
+    )
     return FlatEstimate(
         flat,
         best.kind,
@@ -1270,4 +1280,5 @@ def estimate_flat(
         best.depth_factor,
         tuple(interval_kinds),
         noise,
+        compared=compared,
     )

@@ -1,0 +1,38 @@
+"""``validation.fit_bound`` and ``estimate_flat(compare=...)``: the truth's cost on the fit's
+own windows, set against the answer's, says what bounds a miss (docs/diagnosis.md)."""
+
+from __future__ import annotations
+
+from service.physics.diagnosis import Diagnoser
+from validation.fit_bound import fit_row
+from validation.wide_set import load_case
+
+
+def test_asking_for_a_candidates_cost_changes_nothing_of_the_answer() -> None:
+    c = load_case("W08")
+    d = Diagnoser(c.site)
+    plain, plain_curves = d.diagnose(c.passage, c.measured)
+    asked, asked_curves = d.diagnose(c.passage, c.measured, compare=[("flat", 0.0578, 1.0)])
+    assert plain.flat == asked.flat and plain.verdict == asked.verdict
+    assert plain_curves.estimate.cost_best == asked_curves.estimate.cost_best
+    assert plain_curves.estimate.compared == ()
+    assert len(asked_curves.estimate.compared) == 1
+
+
+def test_a_right_fit_is_no_miss() -> None:
+    row = fit_row("W32")  # fresh 32.7 mm at 76 km/h, damping ratio 0.21
+    assert row is not None and row.miss is None
+
+
+def test_the_landing_anchored_miss_is_the_models() -> None:
+    # W30: the windows sit on the landing after the flat; the truth costs many times the
+    # answer there, far outside the bound
+    row = fit_row("W30")
+    assert row is not None
+    assert row.miss == "model" and row.ratio > 3.0 * row.bound
+
+
+def test_a_fresh_flat_taken_for_a_worn_one_is_within_the_bound() -> None:
+    row = fit_row("W08")  # fresh 57.8 mm at 144 km/h, found worn 59.7 mm
+    assert row is not None
+    assert row.miss == "ambiguous" and 1.0 < row.ratio < 0.75 * row.bound

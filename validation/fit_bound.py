@@ -1,0 +1,143 @@
+"""What bounds each length and kind miss: the truth's cost on the fit's own windows.
+
+For every flat of the wide set the fit is asked, besides its answer, for the cost of the
+true flat (kind, length, depth factor) on the same windows (``estimate_flat(compare=...)``,
+the lowest over the damping ratios searched). Set against the answer's cost and the χ²
+bound that makes the length interval, it says what kind of miss each one is:
+
+- ``search``: the truth costs less than the answer: the twin would prefer it, the search
+  did not reach it;
+- ``ambiguous``: the truth costs more, but within the bound: the record does not tell the
+  two apart (the interval covers it);
+- ``model``: the truth costs more than the bound: the twin's windows (a wheel arriving at
+  the flat in steady rolling, on the site file's even rail) fit the wrong flat better than
+  the right one, and no search can help.
+
+    .venv/bin/python -m validation.fit_bound [--only W06,W30]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import dataclass
+from typing import Literal
+
+from service.physics.diagnosis import Diagnoser
+from sim_core.diagnosis.estimate import DEFAULT_OPTIONS
+from sim_core.diagnosis.forward import typical_rounded_depth
+from validation.wide_set import case_ids, load_case
+
+MissKind = Literal["search", "ambiguous", "model"]
+
+
+@dataclass(frozen=True)
+class FitRow:
+    """One flat of the wide set: the answer and the truth on the same windows."""
+
+    case: str
+    kind: str
+    length: float
+    speed_kmh: float
+    zeta: float
+    found_kind: str | None
+    found_length: float
+    cost_best: float
+    cost_truth: float
+    bound: float
+    explained: bool
+
+    @property
+    def ratio(self) -> float:
+        """The truth's cost over the answer's."""
+        return self.cost_truth / self.cost_best if self.cost_best > 0 else float("inf")
+
+    @property
+    def length_ok(self) -> bool:
+        return abs(self.found_length - self.length) <= max(0.005, 0.1 * self.length)
+
+    @property
+    def kind_ok(self) -> bool:
+        return self.found_kind == self.kind
+
+    @property
+    def miss(self) -> MissKind | None:
+        if self.length_ok and self.kind_ok:
+            return None
+        if self.ratio < 1.0:
+            return "search"
+        return "ambiguous" if self.ratio <= self.bound else "model"
+
+
+def fit_row(case_id: str) -> FitRow | None:
+    """The fit of one wide-set flat with its truth's cost (None for a round wheel)."""
+    c = load_case(case_id)
+    tr = c.truth
+    if not tr["kind"]:
+        return None
+    radius, length = c.passage.radius, float(tr["flat_length_m"])
+    depth_factor = 1.0
+    if tr["kind"] == "rounded_flat":
+        depth_factor = float(tr["flat_depth_m"]) / typical_rounded_depth(radius, length)
+    diag, curves = Diagnoser(c.site).diagnose(
+        c.passage, c.measured, compare=[(tr["kind"], length, depth_factor)]
+    )
+    est = curves.estimate
+    if not est.compared:  # screened, or no whole window: nothing to compare
+        return None
+    windows = max(len(est.windows), 1)
+    return FitRow(
+        case_id,
+        tr["kind"],
+        length,
+        c.passage.speed * 3.6,
+        c.zeta,
+        diag.flat.kind if diag.flat else None,
+        diag.flat.length if diag.flat else 0.0,
+        est.cost_best,
+        est.compared[0],
+        1.0 + 3.84 / (DEFAULT_OPTIONS.dof_per_window * windows),
+        bool(diag.explained),
+    )
+
+
+def fit_rows(ids: list[str]) -> list[FitRow]:
+    return [r for r in (fit_row(cid) for cid in ids) if r is not None]
+
+
+def summary(rows: list[FitRow]) -> str:
+    misses = [r for r in rows if r.miss is not None]
+    lines = [
+        "| case | truth | km/h | ζ | found | truth's cost / answer's | χ² bound | explained | miss |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in misses:
+        lines.append(
+            f"| {r.case} | {r.kind} {r.length * 1e3:.1f} mm | {r.speed_kmh:.0f} | {r.zeta:.3f} "
+            f"| {r.found_kind or 'none'} {r.found_length * 1e3:.1f} mm | {r.ratio:.2f} "
+            f"| {r.bound:.2f} | {'yes' if r.explained else 'no'} | {r.miss} |"
+        )
+    counts = {k: sum(r.miss == k for r in misses) for k in ("search", "ambiguous", "model")}
+    lines += [
+        "",
+        f"- {len(misses)} of {len(rows)} flats miss the length or the kind: "
+        f"{counts['model']} model (the truth costs more than the bound on the twin's own "
+        f"windows), {counts['ambiguous']} ambiguous (within the bound), {counts['search']} "
+        f"search (the truth costs less than the answer)",
+    ]
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(
+        prog="python -m validation.fit_bound", description=__doc__.split("\n")[0]
+    )
+    p.add_argument("--only", default=None, help="comma-separated case ids")
+    a = p.parse_args(argv)
+    ids = a.only.split(",") if a.only else case_ids()
+    print(summary(fit_rows(ids)))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
