@@ -285,13 +285,13 @@ def _run(args: argparse.Namespace, stop: threading.Event, pools: list[PhysicsPoo
         )
         workers = 1
     worker: PhysicsPool | None = None
+    store: RailStore | None = None
     physics: PhysicsPort
     if args.in_process:
         local = LocalPhysics.of(args.physics, site)
         log.info(f"physics warmed up in {local.warm_up():.1f} s")
         physics = local
     else:  # the compiled physics holds the GIL: it runs in a worker process
-        store = None
         if not args.no_state:
             try:
                 store = open_state(args.state or args.recordings / "state", site)
@@ -313,6 +313,8 @@ def _run(args: argparse.Namespace, stop: threading.Event, pools: list[PhysicsPoo
             seconds = worker.start()
         except StartCancelledError:
             worker.close()
+            if store is not None:
+                store.close()
             log.info("stopped during the physics warm-up")
             return 0
         physics = worker
@@ -330,6 +332,8 @@ def _run(args: argparse.Namespace, stop: threading.Event, pools: list[PhysicsPoo
     finally:
         if worker is not None:
             worker.close()
+        if store is not None:  # after the workers: the last passage's commit is in it
+            store.close()
 
 
 def _serve(
