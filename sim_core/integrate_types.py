@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import functools
 from enum import IntEnum
-from typing import NamedTuple, get_type_hints
+from typing import Literal, NamedTuple, cast, get_type_hints
 
 import numba
 import numpy as np
@@ -69,6 +69,11 @@ def as_bool(x: bool) -> bool:
     return bool(x)
 
 
+TransitionKind = Literal["loss", "contact", "yield", "unyield"]
+"""The name of a transition code (``Event.label``); ``schemas.result.TransitionKind`` is the
+same set in the contract (``tests/test_transition_kinds.py``)."""
+
+
 class Event(IntEnum):
     """A change of mode located by the integrator: the transition codes of ``PassageOutput``.
 
@@ -86,8 +91,8 @@ class Event(IntEnum):
     """δ falls through δ_Y - hysteresis (g = δ_Y - hyst - δ)."""
 
     @property
-    def label(self) -> str:
-        return self.name.lower()
+    def label(self) -> TransitionKind:
+        return cast(TransitionKind, self.name.lower())
 
 
 # The same codes as plain ints for the compiled code (an int compares and stores

@@ -55,6 +55,7 @@ from sim_core.integrate_types import (
     X_T_FLIGHT,
     Event,
     Params,
+    TransitionKind,
     table_of,
 )
 from sim_core.integrator import integrate, jump_allowance
@@ -75,7 +76,7 @@ YIELD_HYSTERESIS``) and 25× below the dent lattice's 66 nm chord error. Against
 (case (c) of ``benchmarks.core_bench``): dents within 13 nm, the same transitions, a fifth
 of the records to take and press."""
 
-TRANSITION_KINDS = tuple(e.label for e in Event)
+TRANSITION_KINDS: tuple[TransitionKind, ...] = tuple(e.label for e in Event)
 """Names of the transition codes 0..3 the integrator reports (``integrate_types.Event``)."""
 
 
@@ -175,7 +176,7 @@ class Transition(NamedTuple):
     """
 
     t: float
-    kind: str
+    kind: TransitionKind
     x: float
 
 

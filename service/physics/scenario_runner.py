@@ -170,9 +170,8 @@ def package_result(
         in_contact=np.asarray(last.in_contact, dtype=bool).ravel().tolist(),
         v_m=_floats(last.v_m),
     )
-    transitions = [  # sim_core's kinds are the contract's (TRANSITION_KINDS), typed str there
-        res.Transition(t=float(tr.t), kind=tr.kind, x=float(tr.x))  # type: ignore[arg-type]
-        for tr in last.transitions
+    transitions = [  # sim_core's TransitionKind is the contract's (tests/test_transition_kinds.py)
+        res.Transition(t=float(tr.t), kind=tr.kind, x=float(tr.x)) for tr in last.transitions
     ]
     summaries = [_summary(s) for s in out.summaries]
     rail_after = None

@@ -152,10 +152,7 @@ class SitePhysics:
             indentation=out.delta.tolist(),
             y_c=out.y_c.tolist(),
             y_ck=out.y_ck.tolist(),
-            transitions=[
-                Transition(t=tr.t, kind=tr.kind, x=tr.x)  # type: ignore[arg-type]
-                for tr in out.transitions
-            ],
+            transitions=[Transition(t=tr.t, kind=tr.kind, x=tr.x) for tr in out.transitions],
             summary=s,
             rail_revision=revision,
             wall_time=wall,
