@@ -169,7 +169,8 @@ def main(argv: list[str] | None = None) -> int:
         "\n### What bounds the forecast: the true flat rolled by the twin "
         "(validation.forecast_bound)\n"
     )
-    print(forecast_bound.summary(forecast_bound.bound_rows(wide_set.case_ids())))
+    fit_misses = [str(r["case"]) for r in wide if r["line_truth"] is not None and not line_ok(r)]
+    print(forecast_bound.summary(forecast_bound.bound_rows(wide_set.case_ids()), fit_misses))
     print(
         "\n### What bounds each length and kind miss: the truth's cost on the fit's windows "
         "(validation.fit_bound)\n"

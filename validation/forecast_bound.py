@@ -107,7 +107,10 @@ def bound_rows(ids: list[str]) -> list[BoundRow]:
     return [r for r in (bound_row(cid) for cid in ids) if r is not None]
 
 
-def summary(rows: list[BoundRow]) -> str:
+def summary(rows: list[BoundRow], fit_misses: list[str] | None = None) -> str:
+    """The table of the twin's misses with the truth; with ``fit_misses`` (the passages
+    whose fitted forecast is outside ±20 %), how many of those the twin cannot forecast
+    even with the truth (off, or ill-conditioned)."""
     n = len(rows)
     ok = [r for r in rows if abs(r.error) <= TARGET]
     miss = [r for r in rows if abs(r.error) > TARGET]
@@ -132,6 +135,19 @@ def summary(rows: list[BoundRow]) -> str:
         f"{', '.join(r.case for r in ill) or 'none'}); {len(rail)} where the even rail's twin "
         f"itself is off ({', '.join(r.case for r in rail) or 'none'})",
     ]
+    if fit_misses is not None:
+        by_case = {r.case: r for r in rows}
+        bounded = [
+            c
+            for c in fit_misses
+            if c in by_case and (abs(by_case[c].error) > TARGET or by_case[c].ill_conditioned)
+        ]
+        rest = [c for c in fit_misses if c not in bounded]
+        lines.append(
+            f"- of the fit's {len(fit_misses)} forecasts outside ±20 %, {len(bounded)} are on "
+            f"passages the twin cannot forecast within ±20 % even with the true flat (off, or "
+            f"ill-conditioned); the fit's own: {', '.join(rest) or 'none'}"
+        )
     return "\n".join(lines)
 
 
