@@ -23,19 +23,17 @@ import math
 import numpy as np
 
 from service.physics.diagnosis import Diagnoser
-from sim_core.diagnosis.estimate import DEFAULT_OPTIONS, EXPLAINED_RATIO, FlatEstimate
+from sim_core.diagnosis.estimate import DEFAULT_OPTIONS, FlatEstimate, bound_factor, explains
 from validation.own_generator import measured_case, skip_cases
 from validation.wide_set import load_case
 
 
 def _bound(est: FlatEstimate) -> float:
-    windows = len(est.windows)
-    return est.cost_best * (1.0 + 3.84 / (DEFAULT_OPTIONS.dof_per_window * windows))
+    return est.cost_best * bound_factor(len(est.windows))
 
 
 def _explains(est: FlatEstimate) -> bool:
-    rms_best = math.sqrt(est.cost_best / est.n_samples)
-    return rms_best <= EXPLAINED_RATIO * est.noise_level
+    return explains(math.sqrt(est.cost_best / est.n_samples), est.noise_level)
 
 
 def test_a_round_wheel_inside_an_explaining_fits_bound_is_not_reported() -> None:

@@ -18,15 +18,14 @@ bound that makes the length interval, it says what kind of miss each one is:
 
 from __future__ import annotations
 
-import argparse
 import sys
 from dataclasses import dataclass
 from typing import Literal
 
 from service.physics.diagnosis import Diagnoser
-from sim_core.diagnosis.estimate import DEFAULT_OPTIONS
+from sim_core.diagnosis.estimate import bound_factor
 from sim_core.diagnosis.forward import typical_rounded_depth
-from validation.wide_set import case_ids, load_case
+from validation.wide_set import cases_parser, chosen_ids, load_case
 
 MissKind = Literal["search", "ambiguous", "model"]
 
@@ -79,13 +78,11 @@ def fit_row(case_id: str) -> FitRow | None:
     depth_factor = 1.0
     if tr["kind"] == "rounded_flat":
         depth_factor = float(tr["flat_depth_m"]) / typical_rounded_depth(radius, length)
-    diag, curves = Diagnoser(c.site).diagnose(
-        c.passage, c.measured, compare=[(tr["kind"], length, depth_factor)]
-    )
+    d = Diagnoser(c.site)
+    diag, curves = d.diagnose(c.passage, c.measured, compare=[(tr["kind"], length, depth_factor)])
     est = curves.estimate
     if not est.compared:  # screened, or no whole window: nothing to compare
         return None
-    windows = max(len(est.windows), 1)
     return FitRow(
         case_id,
         tr["kind"],
@@ -96,7 +93,7 @@ def fit_row(case_id: str) -> FitRow | None:
         diag.flat.length if diag.flat else 0.0,
         est.cost_best,
         est.compared[0],
-        1.0 + 3.84 / (DEFAULT_OPTIONS.dof_per_window * windows),
+        bound_factor(max(len(est.windows), 1), d.options),
         bool(diag.explained),
     )
 
@@ -129,13 +126,8 @@ def summary(rows: list[FitRow]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(
-        prog="python -m validation.fit_bound", description=__doc__.split("\n")[0]
-    )
-    p.add_argument("--only", default=None, help="comma-separated case ids")
-    a = p.parse_args(argv)
-    ids = a.only.split(",") if a.only else case_ids()
-    print(summary(fit_rows(ids)))
+    a = cases_parser("validation.fit_bound", __doc__).parse_args(argv)
+    print(summary(fit_rows(chosen_ids(a))))
     return 0
 
 

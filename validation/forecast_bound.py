@@ -19,14 +19,13 @@ the line speed. Two things remain that no fit can supply:
 
 from __future__ import annotations
 
-import argparse
 import sys
 from dataclasses import dataclass
 
 from service.physics.diagnosis import Diagnoser
 from sim_core.diagnosis.estimate import make_flat
 from sim_core.diagnosis.forward import damping_ratio_of, typical_rounded_depth, with_damping_ratio
-from validation.wide_set import case_ids, load_case
+from validation.wide_set import cases_parser, chosen_ids, load_case
 
 TARGET = 0.2
 """The issue's ±20 % on the point forecast."""
@@ -152,13 +151,8 @@ def summary(rows: list[BoundRow], fit_misses: list[str] | None = None) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(
-        prog="python -m validation.forecast_bound", description=__doc__.split("\n")[0]
-    )
-    p.add_argument("--only", default=None, help="comma-separated case ids")
-    a = p.parse_args(argv)
-    ids = a.only.split(",") if a.only else case_ids()
-    print(summary(bound_rows(ids)))
+    a = cases_parser("validation.forecast_bound", __doc__).parse_args(argv)
+    print(summary(bound_rows(chosen_ids(a))))
     return 0
 
 

@@ -163,15 +163,24 @@ def run_all(ids: list[str]) -> list[dict[str, Any]]:
     return rows
 
 
+def cases_parser(module: str, doc: str | None) -> argparse.ArgumentParser:
+    """The command line of a script over the wide set: ``--only`` case ids (see
+    ``chosen_ids``); ``doc``'s first line is its description."""
+    p = argparse.ArgumentParser(prog=f"python -m {module}", description=(doc or "").split("\n")[0])
+    p.add_argument("--only", default=None, help="comma-separated case ids (default: all)")
+    return p
+
+
+def chosen_ids(args: argparse.Namespace) -> list[str]:
+    """The case ids ``--only`` names, else every case of the set."""
+    return str(args.only).split(",") if args.only else case_ids()
+
+
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(
-        prog="python -m validation.wide_set", description=__doc__.split("\n")[0]
-    )
-    p.add_argument("--only", default=None, help="comma-separated case ids")
+    p = cases_parser("validation.wide_set", __doc__)
     p.add_argument("--out", type=Path, default=None)
     a = p.parse_args(argv)
-    ids = a.only.split(",") if a.only else case_ids()
-    rows = run_all(ids)
+    rows = run_all(chosen_ids(a))
     if a.out:
         a.out.write_text(json.dumps(rows, indent=1))
     return 0

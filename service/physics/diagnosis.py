@@ -27,7 +27,9 @@ from sim_core.diagnosis.estimate import (
     EXPLAINED_RATIO,
     FlatEstimate,
     estimate_flat,
+    explains,
     make_flat,
+    residual_ratio,
 )
 from sim_core.diagnosis.forked import Forked
 from sim_core.diagnosis.forward import (
@@ -231,8 +233,8 @@ class Diagnoser:
         cfg = self.site.diagnosis
         flat = est.flat
         noise = est.noise_level
-        ratio = est.fit_rms / noise if noise > 0 else math.inf
-        explained = ratio <= EXPLAINED_RATIO
+        ratio = residual_ratio(est.fit_rms, noise)
+        explained = explains(est.fit_rms, noise)
         at_line: float | None = None
         line_low: float | None = None
         line_high: float | None = None

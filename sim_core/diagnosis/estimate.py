@@ -77,9 +77,12 @@ __all__ = [
     "EXPLAINED_RATIO",
     "FitOptions",
     "FlatEstimate",
+    "bound_factor",
     "estimate_flat",
+    "explains",
     "make_flat",
     "record_noise",
+    "residual_ratio",
 ]
 
 LENGTH_GRID = (0.006, 0.01, 0.015, 0.02, 0.03, 0.04, 0.055, 0.07, 0.09, 0.115, 0.14)
@@ -938,6 +941,32 @@ does not model: up to 10 µm of unknown rail roughness and the chaotic timing of
 (MODEL.md §7). On the project's own generator over the wide space (docs/diagnosis.md) the
 fits within tolerance have a median of 2.2x and most stay below 8; most wrong fits lie above."""
 
+
+def residual_ratio(rms: float, noise: float) -> float:
+    """A fit's rms residual over the record's noise σ (infinite for a record without noise)."""
+    return rms / noise if noise > 0 else math.inf
+
+
+def explains(rms: float, noise: float) -> bool:
+    """Whether a fit with this rms residual explains a record with this noise σ.
+
+    >>> explains(3e3, 1e3), explains(9e3, 1e3), explains(1.0, 0.0)
+    (True, False, False)
+    """
+    return residual_ratio(rms, noise) <= EXPLAINED_RATIO
+
+
+def bound_factor(windows: int, options: FitOptions = DEFAULT_OPTIONS) -> float:
+    """J_max / J_best of the length interval's χ² bound over ``windows`` windows (the
+    residuals are model error, correlated over a window: ``dof_per_window`` degrees of
+    freedom each).
+
+    >>> round(bound_factor(2), 2)
+    2.28
+    """
+    return 1.0 + 3.84 / (options.dof_per_window * windows)
+
+
 DEPTH_FACTORS = (0.7, 1.3)
 """A worn flat's depth is fitted within these multiples of l²/16R (the spread of worn
 flats' depths in the literature the wide validation space follows)."""
@@ -1206,8 +1235,7 @@ def estimate_flat(
     n_eff = n * (min(1.0, 2.0 * sensor.cutoff_hz / rate) if sensor.cutoff_hz else 1.0)
     n_eff = max(n_eff, 1.0)
     significance = (cost_round - best.cost) / (best.cost / n_eff) if best.cost > 0 else math.inf
-    # the residuals are model error, correlated over a window: a few degrees of freedom each
-    j_max = best.cost * (1.0 + 3.84 / (options.dof_per_window * len(win)))
+    j_max = best.cost * bound_factor(len(win), options)
     # the interval: every kind whose best is within j_max contributes its own (a fresh flat
     # and a worn one ~25 % longer can make the same windows), each walked out from its best
     # length at its damping until the cost passes j_max
@@ -1242,8 +1270,7 @@ def estimate_flat(
     # wheel lies inside it, the record does not exclude "no flat" (with two or three windows
     # the bound is wide). A fit that does not explain its record leaves a bound set by what
     # the twin does not model, not by the flat: there the significance alone decides
-    explains = math.sqrt(best.cost / max(n, 1)) <= EXPLAINED_RATIO * noise
-    round_in_bound = explains and cost_round <= j_max
+    round_in_bound = explains(math.sqrt(best.cost / max(n, 1)), noise) and cost_round <= j_max
     found = (
         significance >= options.detection
         and not round_in_bound
