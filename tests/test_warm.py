@@ -28,6 +28,26 @@ def test_every_group_step_is_known_and_an_unknown_one_refused() -> None:
         warm.warm_group(("everything",))
 
 
+def test_sources_are_byte_compiled_where_python_writes_no_bytecode(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import importlib.util
+    import sys
+
+    pkg = tmp_path / "warm_probe_pkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "mod.py").write_text("VALUE = 1\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setattr(sys, "dont_write_bytecode", True)
+    assert warm.compile_sources(("warm_probe_pkg",))
+    for source in (pkg / "__init__.py", pkg / "mod.py"):
+        assert Path(importlib.util.cache_from_source(str(source))).is_file()
+    with pytest.raises(ValueError, match="no package 'no_such_railtwin_pkg'"):
+        warm.compile_sources(("no_such_railtwin_pkg",))
+    assert all(importlib.util.find_spec(name) is not None for name in warm.PACKAGES)
+
+
 def test_default_jobs_is_at_most_the_groups_and_at_least_one() -> None:
     assert 1 <= warm._default_jobs() <= len(warm.GROUPS)
 
