@@ -89,7 +89,6 @@ class Diagnoser:
         if cores < 1:
             raise ValueError(f"Diagnoser: cores must be at least 1, got {cores}")
         self.site = site
-        self.cores = cores
         self.options = replace(DEFAULT_OPTIONS, cores=cores)
         self.physics = physics if physics is not None else SitePhysics(site)
         cfg = site.diagnosis
@@ -372,7 +371,7 @@ class Diagnoser:
         def peak(run: tuple[WheelOnSite, Flat]) -> float | None:
             return self.line_peak(run[0], line_speed, run[1], sample_rate)
 
-        if self.cores > 1:  # a forked child runs every other one
+        if self.options.cores > 1:  # a forked child runs every other one
             with Forked(lambda: [peak(r) for r in runs[::2]]) as forked:
                 mine = [peak(r) for r in runs[1::2]]
                 theirs = forked.value()
