@@ -3,8 +3,11 @@ own windows, set against the answer's, says what bounds a miss (docs/diagnosis.m
 
 from __future__ import annotations
 
+import numpy as np
+
 from service.physics.diagnosis import Diagnoser
-from validation.fit_bound import fit_row
+from validation import own_generator
+from validation.fit_bound import FitRow, fit_row, fit_rows, summary
 from validation.wide_set import load_case
 
 
@@ -36,3 +39,24 @@ def test_a_fresh_flat_taken_for_a_worn_one_is_within_the_bound() -> None:
     row = fit_row("W08")  # fresh 57.8 mm at 144 km/h, found worn 59.7 mm
     assert row is not None
     assert row.miss == "ambiguous" and 1.0 < row.ratio < 0.75 * row.bound
+
+
+def test_the_own_generators_rows_are_classified_too() -> None:
+    # seed 20261201's o014: fresh 94.1 mm at ζ 0.09, explained, its windows on the landing
+    # after the flat (docs/diagnosis.md); a well-found flat of the same seed is no miss
+    rng = np.random.default_rng(20261201)
+    own_generator.skip_cases(14, rng)
+    row = own_generator.run_case(14, rng)
+    assert {"cost_best", "cost_truth", "cost_bound", "line_oracle"} <= row.keys()
+    got = FitRow.from_result(row)
+    assert got is not None and got.miss == "model" and got.ratio > 3.0 * got.bound
+    rng = np.random.default_rng(20261201)
+    own_generator.skip_cases(1, rng)
+    right = own_generator.run_case(1, rng)  # fresh flat, found within tolerance
+    assert [r.miss for r in fit_rows([row, right])] == ["model", None]
+    assert "1 of 2 flats miss the length or the kind: 1 model" in summary(fit_rows([row, right]))
+
+
+def test_a_round_wheel_and_a_screened_record_have_no_row() -> None:
+    assert FitRow.from_result({"kind": "round"}) is None
+    assert FitRow.from_result({"kind": "flat", "case": "x"}) is None  # no windows compared

@@ -11,10 +11,10 @@
 Prints, per source, the table per kind × speed band × damping band (length error
 median/worst, within max(5 mm, 10 %), kind, length-interval coverage, line-speed forecast
 within ±20 % and its interval's coverage, wall time), then false alarms, missed
-``remove``, unexplained fits and timings; for (a), what bounds the forecast (the true flat
-rolled by the twin, ``validation.forecast_bound``) and each length or kind miss (the
-truth's cost on the fit's windows, ``validation.fit_bound``); then ``railtwin diagnose`` as a command, timed on
-every wide-set passage (``validation.cli_timing``). Writes every case to ``--out``.
+``remove``, unexplained fits and timings; what bounds the forecast (the true flat rolled by
+the twin, ``validation.forecast_bound``) and each length or kind miss (the truth's cost on
+the fit's windows, ``validation.fit_bound``); then ``railtwin diagnose`` as a command,
+timed on every wide-set passage (``validation.cli_timing``). Writes every case to ``--out``.
 """
 
 from __future__ import annotations
@@ -138,6 +138,24 @@ def table(rows: list[dict[str, Any]]) -> str:
     return "\n".join(out)
 
 
+def bounds(rows: list[dict[str, Any]]) -> str:
+    """What bounds the source's forecast misses (``validation.forecast_bound``) and its
+    length and kind misses (``validation.fit_bound``), from the rows' truth fields."""
+    from validation import fit_bound, forecast_bound
+
+    fit_misses = [str(r["case"]) for r in rows if r["line_truth"] is not None and not line_ok(r)]
+    return "\n".join(
+        [
+            "\n### What bounds the forecast: the true flat rolled by the twin "
+            "(validation.forecast_bound)\n",
+            forecast_bound.summary(forecast_bound.bound_rows(rows), fit_misses),
+            "\n### What bounds each length and kind miss: the truth's cost on the fit's "
+            "windows (validation.fit_bound)\n",
+            fit_bound.summary(fit_bound.fit_rows(rows)),
+        ]
+    )
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(
         prog="python -m validation.diagnosis_validation", description=__doc__.split("\n")[0]
@@ -157,7 +175,7 @@ def main(argv: list[str] | None = None) -> int:
         p.error(f"--seeds must be comma-separated integers, got {a.seeds!r}")
     # compile the kernels first (a cold numba cache takes minutes): the timings are the fits'
     from service.physics.diagnosis import Diagnoser
-    from validation import cli_timing, fit_bound, forecast_bound, own_generator, wide_set
+    from validation import cli_timing, own_generator, wide_set
 
     Diagnoser(wide_set.load_case(wide_set.case_ids()[0]).site).warm_up()
     start = time.perf_counter()
@@ -165,17 +183,7 @@ def main(argv: list[str] | None = None) -> int:
     results: dict[str, list[dict[str, Any]]] = {"wide": wide}
     print("## (a) the independent wide set (validation/measured-wide, 40 passages)\n")
     print(table(wide))
-    print(
-        "\n### What bounds the forecast: the true flat rolled by the twin "
-        "(validation.forecast_bound)\n"
-    )
-    fit_misses = [str(r["case"]) for r in wide if r["line_truth"] is not None and not line_ok(r)]
-    print(forecast_bound.summary(forecast_bound.bound_rows(wide_set.case_ids()), fit_misses))
-    print(
-        "\n### What bounds each length and kind miss: the truth's cost on the fit's windows "
-        "(validation.fit_bound)\n"
-    )
-    print(fit_bound.summary(fit_bound.fit_rows(wide_set.case_ids())))
+    print(bounds(wide))
     for k, seed in enumerate(seeds if a.own > 0 else []):
         own = own_generator.run_all(a.own, seed)
         results["own" if k == 0 else f"own_{seed}"] = own
@@ -184,6 +192,7 @@ def main(argv: list[str] | None = None) -> int:
             f"space (seed {seed})\n"
         )
         print(table(own))
+        print(bounds(own))
     a.out.write_text(json.dumps(results, indent=1))
     n = sum(len(v) for v in results.values())
     print(f"\n({n} passages in {time.perf_counter() - start:.0f} s)")

@@ -1,8 +1,9 @@
 """What bounds each length and kind miss: the truth's cost on the fit's own windows.
 
-For every flat of the wide set the fit is asked, besides its answer, for the cost of the
+For every flat of both sources the fit is asked, besides its answer, for the cost of the
 true flat (kind, length, depth factor) on the same windows (``estimate_flat(compare=...)``,
-the lowest over the damping ratios searched). Set against the answer's cost and the χ²
+the lowest over the damping ratios searched; ``truth_bounds.fit_fields``, stored in each
+validation row). Set against the answer's cost and the χ²
 bound that makes the length interval, it says what kind of miss each one is:
 
 - ``search``: the truth costs less than the answer: the twin would prefer it, the search
@@ -20,19 +21,16 @@ from __future__ import annotations
 
 import sys
 from dataclasses import dataclass
-from typing import Literal
+from typing import Any, Literal
 
-from service.physics.diagnosis import Diagnoser
-from sim_core.diagnosis.estimate import bound_factor
-from sim_core.diagnosis.forward import typical_rounded_depth
-from validation.wide_set import cases_parser, chosen_ids, load_case
+from validation.wide_set import cases_parser, chosen_ids, load_case, run_case
 
 MissKind = Literal["search", "ambiguous", "model"]
 
 
 @dataclass(frozen=True)
 class FitRow:
-    """One flat of the wide set: the answer and the truth on the same windows."""
+    """One flat of a validation source: the answer and the truth on the same windows."""
 
     case: str
     kind: str
@@ -45,6 +43,26 @@ class FitRow:
     cost_truth: float
     bound: float
     explained: bool
+
+    @classmethod
+    def from_result(cls, r: dict[str, Any]) -> FitRow | None:
+        """The row of a validation result (``truth_bounds.fit_fields`` in it), None for a
+        round wheel or a record whose fit compared no windows."""
+        if r["kind"] == "round" or "cost_truth" not in r:
+            return None
+        return cls(
+            str(r["case"]),
+            str(r["kind"]),
+            float(r["true_length"]),
+            float(r["speed_kmh"]),
+            float(r["true_damping_ratio"]),
+            r["found_kind"],
+            float(r["found_length"]),
+            float(r["cost_best"]),
+            float(r["cost_truth"]),
+            float(r["cost_bound"]),
+            bool(r["explained"]),
+        )
 
     @property
     def ratio(self) -> float:
@@ -68,38 +86,14 @@ class FitRow:
         return "ambiguous" if self.ratio <= self.bound else "model"
 
 
+def fit_rows(results: list[dict[str, Any]]) -> list[FitRow]:
+    """The ``FitRow`` of every flat among validation ``results``."""
+    return [r for r in (FitRow.from_result(x) for x in results) if r is not None]
+
+
 def fit_row(case_id: str) -> FitRow | None:
-    """The fit of one wide-set flat with its truth's cost (None for a round wheel)."""
-    c = load_case(case_id)
-    tr = c.truth
-    if not tr["kind"]:
-        return None
-    radius, length = c.passage.radius, float(tr["flat_length_m"])
-    depth_factor = 1.0
-    if tr["kind"] == "rounded_flat":
-        depth_factor = float(tr["flat_depth_m"]) / typical_rounded_depth(radius, length)
-    d = Diagnoser(c.site)
-    diag, curves = d.diagnose(c.passage, c.measured, compare=[(tr["kind"], length, depth_factor)])
-    est = curves.estimate
-    if not est.compared:  # screened, or no whole window: nothing to compare
-        return None
-    return FitRow(
-        case_id,
-        tr["kind"],
-        length,
-        c.passage.speed * 3.6,
-        c.zeta,
-        diag.flat.kind if diag.flat else None,
-        diag.flat.length if diag.flat else 0.0,
-        est.cost_best,
-        est.compared[0],
-        bound_factor(max(len(est.windows), 1), d.options),
-        bool(diag.explained),
-    )
-
-
-def fit_rows(ids: list[str]) -> list[FitRow]:
-    return [r for r in (fit_row(cid) for cid in ids) if r is not None]
+    """The fit of one wide-set passage with its truth's cost (None for a round wheel)."""
+    return FitRow.from_result(run_case(load_case(case_id)))
 
 
 def summary(rows: list[FitRow]) -> str:
@@ -127,7 +121,7 @@ def summary(rows: list[FitRow]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     a = cases_parser("validation.fit_bound", __doc__).parse_args(argv)
-    print(summary(fit_rows(chosen_ids(a))))
+    print(summary(fit_rows([run_case(load_case(cid)) for cid in chosen_ids(a)])))
     return 0
 
 

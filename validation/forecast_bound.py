@@ -21,29 +21,18 @@ from __future__ import annotations
 
 import sys
 from dataclasses import dataclass
+from typing import Any
 
-from service.physics.diagnosis import Diagnoser
-from sim_core.diagnosis.estimate import make_flat
-from sim_core.diagnosis.forward import damping_ratio_of, typical_rounded_depth, with_damping_ratio
-from validation.wide_set import cases_parser, chosen_ids, load_case
+from validation.wide_set import cases_parser, chosen_ids, load_case, run_case
 
 TARGET = 0.2
 """The issue's ±20 % on the point forecast."""
 
-PERTURBATIONS = (
-    (0.9, 0.0, 1.0),
-    (1.1, 0.0, 1.0),
-    (1.0, 0.0, 0.995),
-    (1.0, 0.0, 1.005),
-    (1.0, -0.005, 1.0),
-    (1.0, 0.005, 1.0),
-)
-"""(damping ratio ×, phase + rad, line speed ×) of the conditioning check."""
-
 
 @dataclass(frozen=True)
 class BoundRow:
-    """One flat of the wide set: the twin's peak at line speed with the true flat (N)."""
+    """One flat of a validation source: the twin's peak at line speed with the true flat
+    (N), and its range over ``truth_bounds.PERTURBATIONS``."""
 
     case: str
     kind: str
@@ -53,6 +42,24 @@ class BoundRow:
     oracle: float
     low: float
     high: float
+
+    @classmethod
+    def from_result(cls, r: dict[str, Any]) -> BoundRow | None:
+        """The row of a validation result (``truth_bounds.forecast_fields`` in it), None for
+        a round wheel, a passage without line-speed truth, or one the integrator does not
+        resolve."""
+        if r["kind"] == "round" or r.get("line_truth") is None or "line_oracle" not in r:
+            return None
+        return cls(
+            str(r["case"]),
+            str(r["kind"]),
+            float(r["true_length"]),
+            float(r["true_damping_ratio"]),
+            float(r["line_truth"]),
+            float(r["line_oracle"]),
+            float(r["line_oracle_low"]),
+            float(r["line_oracle_high"]),
+        )
 
     @property
     def error(self) -> float:
@@ -68,42 +75,14 @@ class BoundRow:
         return self.spread > 2.0 * TARGET
 
 
+def bound_rows(results: list[dict[str, Any]]) -> list[BoundRow]:
+    """The ``BoundRow`` of every flat among validation ``results``."""
+    return [r for r in (BoundRow.from_result(x) for x in results) if r is not None]
+
+
 def bound_row(case_id: str) -> BoundRow | None:
-    """The twin's line-speed peak with the true flat, or None (a round wheel, no truth, or
-    a passage the integrator does not resolve)."""
-    c = load_case(case_id)
-    tr = c.truth
-    if not tr["kind"] or c.line_peak_measured is None or c.site.diagnosis.line_speed is None:
-        return None
-    d = Diagnoser(c.site)
-    wheel = d.wheel(c.passage)
-    radius, length = c.passage.radius, float(tr["flat_length_m"])
-    depth_factor = 1.0
-    if tr["kind"] == "rounded_flat":
-        depth_factor = float(tr["flat_depth_m"]) / typical_rounded_depth(radius, length)
-    flat = make_flat(radius, tr["kind"], length, depth_factor)
-    zeta = damping_ratio_of(wheel.foundation)
-    line, rate = c.site.diagnosis.line_speed, c.measured.sample_rate
-    peaks: list[float] = []
-    for dz, dphi, dv in ((1.0, 0.0, 1.0), *PERTURBATIONS):
-        got = d.line_peak(
-            with_damping_ratio(wheel, zeta * dz),
-            line * dv,
-            flat.with_phase(float(tr["phi0"]) + dphi),
-            rate,
-        )
-        if got is None:
-            if not peaks:
-                return None
-            continue
-        peaks.append(got)
-    return BoundRow(
-        case_id, tr["kind"], length, zeta, c.line_peak_measured, peaks[0], min(peaks), max(peaks)
-    )
-
-
-def bound_rows(ids: list[str]) -> list[BoundRow]:
-    return [r for r in (bound_row(cid) for cid in ids) if r is not None]
+    """The twin's line-speed peak with the true flat for one wide-set passage, or None."""
+    return BoundRow.from_result(run_case(load_case(case_id)))
 
 
 def summary(rows: list[BoundRow], fit_misses: list[str] | None = None) -> str:
@@ -152,7 +131,7 @@ def summary(rows: list[BoundRow], fit_misses: list[str] | None = None) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     a = cases_parser("validation.forecast_bound", __doc__).parse_args(argv)
-    print(summary(bound_rows(chosen_ids(a))))
+    print(summary(bound_rows([run_case(load_case(cid)) for cid in chosen_ids(a)])))
     return 0
 
 

@@ -28,6 +28,7 @@ from service.physics.diagnosis import Diagnoser
 from sim_core.diagnosis.forward import Flat, damping_for_ratio
 from sim_core.diagnosis.synthetic import Perturbations, SyntheticMeasurement, synthetic_measurement
 from sim_core.passage import Foundation
+from validation.truth_bounds import fit_fields, forecast_fields, true_depth_factor
 from validation.wide_set import fitted_fields
 
 LINE_SPEED = 44.44
@@ -152,7 +153,13 @@ def run_case(i: int, rng: np.random.Generator) -> dict[str, Any]:
     diag, curves = d.diagnose(p, mp)
     cpu = time.process_time() - cpu
     line_truth = None
+    bounds: dict[str, Any] = {}
     if tread is not None:
+        df = true_depth_factor(tread.kind, p.radius, tread.length, tread.depth)
+        bounds = {
+            **fit_fields(d, p, mp, tread.kind, tread.length, df),
+            **forecast_fields(d, p, tread.kind, tread.length, df, tread.phase, m.sample_rate),
+        }
         wheel = d.wheel(p)
         lm = synthetic_measurement(
             wheel,
@@ -177,6 +184,7 @@ def run_case(i: int, rng: np.random.Generator) -> dict[str, Any]:
         "true_noise": noise * p.load,
         "line_truth": line_truth,
         **fitted_fields(diag, curves, cpu),
+        **bounds,
     }
 
 

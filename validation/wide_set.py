@@ -1,7 +1,8 @@
 """The independent wide set (``validation/measured-wide``) through the same path as
 ``railtwin diagnose``: site file, ``WheelPassage`` from what the site knows, the CSV as a
 ``MeasuredPassage``, ``Diagnoser.diagnose``; then compared with ``truth`` and
-``line_speed_truth.json``.
+``line_speed_truth.json``; and, for each flat, what the truth itself gives the twin
+(``validation.truth_bounds``).
 
     .venv/bin/python -m validation.wide_set [--only W01,W05] [--out rows.json]
 """
@@ -23,6 +24,7 @@ from schemas.messages import WheelPassage
 from schemas.site import SiteConfig
 from service.physics.diagnosis import Diagnoser, FitCurves
 from service.wire.site import load_site
+from validation.truth_bounds import fit_fields, forecast_fields, true_depth_factor
 
 WIDE_DIR = Path(__file__).resolve().parent / "measured-wide"
 
@@ -84,6 +86,18 @@ def run_case(c: WideCase) -> dict[str, Any]:
     cpu = time.process_time() - cpu
     tr = c.truth
     kind = tr["kind"] or "round"
+    bounds: dict[str, Any] = {}
+    if tr["kind"]:
+        length = float(tr["flat_length_m"])
+        df = true_depth_factor(
+            tr["kind"], c.passage.radius, length, float(tr.get("flat_depth_m") or 0.0)
+        )
+        bounds = {
+            **fit_fields(d, c.passage, c.measured, tr["kind"], length, df),
+            **forecast_fields(
+                d, c.passage, tr["kind"], length, df, float(tr["phi0"]), c.measured.sample_rate
+            ),
+        }
     return {
         "case": c.case_id,
         "source": "wide",
@@ -95,6 +109,7 @@ def run_case(c: WideCase) -> dict[str, Any]:
         "true_peak": float(tr["true_F_max_in_site"]),
         "line_truth": c.line_peak_measured,
         **fitted_fields(diag, curves, cpu),
+        **bounds,
     }
 
 
