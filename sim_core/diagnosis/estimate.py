@@ -119,6 +119,11 @@ class FitOptions:
     damped wheel arrives with; each was measured on both validation sources and none
     improved both (docs/diagnosis.md, "Tried and not kept"), so all are off.
 
+    ``rolling_anchors``: each turn's anchor is its first impact after the wheel last
+    rolled, not a landing after the bounce a long flat throws it into
+    (``turns.first_impact_after_rolling``; on). Measured on both sources and 20 own seeds
+    (docs/diagnosis.md): windows that held only the landing now hold the flat.
+
     ``depth_profile``: a worn flat's length interval profiles the depth out (on).
 
     ``coarse_depth_factors``: the worn kind's coarse grid at these depth factors (default
@@ -156,6 +161,7 @@ class FitOptions:
     ringing: bool = False
     clean_arrivals: bool = False
     first_impact_lead: bool = False
+    rolling_anchors: bool = True
     cores: int = 1
     depth_profile: bool = True
     coarse_depth_factors: tuple[float, ...] = (1.0,)
@@ -1126,7 +1132,8 @@ def estimate_flat(
             noise_level=noise,
             screened=True,
         )
-    anchors = find_anchors(t, f, P, R, speed)
+    floor = ARRIVAL_CONTACT * P + 4.0 * noise if options.rolling_anchors else None
+    anchors = find_anchors(t, f, P, R, speed, contact_floor=floor)
     v = speed
     if anchors.times.size >= 2:
         v = min(max(TWO_PI * R / anchors.period, 0.97 * speed), 1.03 * speed)

@@ -7,7 +7,10 @@ grid of phases and of speed factors (the reported speed may be off by a few per 
 and over three turns at 30 km/h 1 % is 10 ms), the sum of the disturbance at the
 predicted times is largest where the flat hits. Each turn's *anchor* is then the
 local maximum of the disturbance near its predicted time: the first impact for a flat
-that makes the wheel jump, the bottom of the dip for one that does not.
+that makes the wheel jump, the bottom of the dip for one that does not. Where that
+maximum is a landing after the impact threw the wheel (a long fresh flat at speed), the
+estimate walks it back to the first impact after rolling
+(``first_impact_after_rolling``).
 
 The anchors fix the windows the fit compares and, with two or more turns, the
 measured turn period (and so the speed) to about 0.1 %.
@@ -32,7 +35,7 @@ from numpy.typing import NDArray
 
 from sim_core.wheel import TWO_PI
 
-__all__ = ["Anchors", "disturbance", "find_anchors"]
+__all__ = ["Anchors", "disturbance", "find_anchors", "first_impact_after_rolling"]
 
 SMOOTHING = 1e-3
 """s: width of the moving average of |F - P| (an impact and its dip are 1-20 ms long)."""
@@ -65,9 +68,18 @@ def disturbance(t: NDArray[np.float64], f: NDArray[np.float64], load: float) -> 
 
 
 def find_anchors(
-    t: NDArray[np.float64], f: NDArray[np.float64], load: float, radius: float, speed: float
+    t: NDArray[np.float64],
+    f: NDArray[np.float64],
+    load: float,
+    radius: float,
+    speed: float,
+    contact_floor: float | None = None,
 ) -> Anchors:
-    """The per-turn anchors of a record ``f`` at times ``t`` (see the module docstring)."""
+    """The per-turn anchors of a record ``f`` at times ``t`` (see the module docstring).
+
+    With ``contact_floor`` (N: the wheel is in contact while the record is above it), an
+    anchor that is a landing after a bounce is moved back to the turn's first impact after
+    rolling (``first_impact_after_rolling``)."""
     g = disturbance(t, f, load)
     rate = (t.size - 1) / (t[-1] - t[0])
     best = (-1.0, 0.0, 1.0)
@@ -84,7 +96,7 @@ def find_anchors(
             best = (float(score[k]), float(phases[k]), float(period))
     _, first, period = best
     half = min(0.25 * period, 0.02)
-    anchors = []
+    picks: list[int] = []
     tk = t[0] + first
     while tk <= t[-1] + half:
         lo = np.searchsorted(t, tk - half)
@@ -94,9 +106,12 @@ def find_anchors(
             # the smoothed peak is flat-topped: the anchor is the raw peak under it
             a, b = np.searchsorted(t, t[j] - SMOOTHING), np.searchsorted(t, t[j] + SMOOTHING)
             j = a + int(np.argmax(np.abs(f[a:b] - load)))
-            if 0 < j < t.size - 1:
-                anchors.append(float(t[j]))
+            if contact_floor is not None:
+                back = round(min(LEAD_BACK[0] * period, LEAD_BACK[1]) * rate)
+                j = first_impact_after_rolling(f, j, contact_floor, back, round(ROLLING * rate))
+            picks.append(j)
         tk += period
+    anchors = [float(t[j]) for j in picks if 0 < j < t.size - 1]
     times = np.array(anchors)
     if times.size >= 2:
         k = np.rint((times - times[0]) / period)
@@ -106,6 +121,53 @@ def find_anchors(
     peak = float(np.min(g[np.searchsorted(t, times)])) if times.size else 0.0
     lead = first_impact_lead(t, g, times, period)
     return Anchors(times, period, peak / med if med > 0 else math.inf, lead)
+
+
+ROLLING = 3e-3
+"""s of unbroken contact that make a wheel *rolling* (an impact's contact lasts 1-2 ms)."""
+
+
+def first_impact_after_rolling(
+    f: NDArray[np.float64], j: int, floor: float, back: int, rolling: int
+) -> int:
+    """The sample of the first impact after the wheel last rolled, walking back from the
+    peak at sample ``j`` at most ``back`` samples (``j`` itself if it finds no rolling).
+
+    A long fresh flat at speed throws the wheel: it leaves the rail at the leading corner,
+    hits the trailing corner, flies, and can land harder than it hit (the wide set's W30
+    lands at 24 P, 19 ms after a 7.9 P impact). The largest peak of such a turn is a
+    landing, and a window ending there holds no flat. A peak is a landing when its contact
+    began after a flight (record at or below ``floor``) that began from a contact shorter
+    than ``rolling`` samples: the walk goes back to that contact's peak and asks again,
+    until the flight began from rolling (the peak is the first impact) or the peak was
+    reached in unbroken contact. A wheel that arrives bouncing from the last turn has no
+    rolling to walk back to within ``back``, and keeps its largest peak.
+
+        >>> f = np.array([1.0] * 8 + [0.0] * 2 + [5.0] + [0.0] * 6 + [9.0] + [0.0] * 3)
+        >>> first_impact_after_rolling(f, 17, 0.1, 20, 4)
+        10
+    """
+    if f[j] <= floor:
+        return j  # a dip, not an impact
+    lo = max(j - back, 0)
+    i = j
+    while True:
+        k = i  # back to the start of the contact the peak is in
+        while k > lo and f[k - 1] > floor and i - k < rolling:
+            k -= 1
+        if i - k >= rolling:
+            return i  # reached in unbroken contact
+        m = k - 1  # back through the flight before it
+        while m > lo and f[m] <= floor:
+            m -= 1
+        if m <= lo or k <= lo:
+            return j
+        s = m  # the contact the flight began from
+        while s > lo and f[s - 1] > floor and m - s + 1 < rolling:
+            s -= 1
+        if m - s + 1 >= rolling:
+            return i  # the flight began from rolling: i is its first impact
+        i = s + int(np.argmax(f[s : m + 1]))
 
 
 LEAD_SHARE = 0.5
