@@ -6,7 +6,7 @@
 #   make bench    run the benchmarks (benchmarks/run_all.py)
 #   make figures  draw the paper's figures into figures/
 #   make soak     20 000-passage burst (memory must plateau), kill -9 mid-stream, recover (minutes)
-#   make validate the wheel-flat diagnosis: independent wide set + own generator, railtwin diagnose timed (~1.5 min)
+#   make validate the wheel-flat diagnosis: independent wide set + own generator, railtwin diagnose timed (~3 min)
 #   make lint     ruff and mypy only
 #   make fleet-demo  router, three site twins, the fleet service, a growing flat's alarms (minutes)
 #   make fleet-bench the fleet at scale: 100 sites through a router, 10^6 rows, SQLite and PostgreSQL

@@ -13,8 +13,10 @@ median/worst, within max(5 mm, 10 %), kind, length-interval coverage, line-speed
 within ±20 % and its interval's coverage, wall time), then false alarms, missed
 ``remove``, unexplained fits and timings; what bounds the forecast (the true flat rolled by
 the twin, ``validation.forecast_bound``) and each length or kind miss (the truth's cost on
-the fit's windows, ``validation.fit_bound``); then ``railtwin diagnose`` as a command,
-timed on every wide-set passage (``validation.cli_timing``). Writes every case to ``--out``.
+the fit's windows, ``validation.fit_bound``); the own generator's line-speed truth, where
+the forecast missed it, re-integrated by the test suite's slow reference solver
+(``validation.line_truth_reference``); then ``railtwin diagnose`` as a command, timed on
+every wide-set passage (``validation.cli_timing``). Writes every case to ``--out``.
 """
 
 from __future__ import annotations
@@ -175,7 +177,7 @@ def main(argv: list[str] | None = None) -> int:
         p.error(f"--seeds must be comma-separated integers, got {a.seeds!r}")
     # compile the kernels first (a cold numba cache takes minutes): the timings are the fits'
     from service.physics.diagnosis import Diagnoser
-    from validation import cli_timing, own_generator, wide_set
+    from validation import cli_timing, line_truth_reference, own_generator, wide_set
 
     Diagnoser(wide_set.load_case(wide_set.case_ids()[0]).site).warm_up()
     start = time.perf_counter()
@@ -196,6 +198,20 @@ def main(argv: list[str] | None = None) -> int:
     a.out.write_text(json.dumps(results, indent=1))
     n = sum(len(v) for v in results.values())
     print(f"\n({n} passages in {time.perf_counter() - start:.0f} s)")
+    # the own generator's line-speed truth where the fit's forecast missed it: the same
+    # passage by the test suite's slow reference solver (SciPy), two at a time
+    keys = [
+        (seed, int(str(r["case"])[1:]))
+        for k, seed in enumerate(seeds if a.own > 0 else [])
+        for r in results["own" if k == 0 else f"own_{seed}"]
+        if r["line_truth"] is not None and not line_ok(r)
+    ]
+    if keys:
+        print(
+            "\n## The own generator's line-speed truth by the test suite's slow reference "
+            "solver, where the forecast missed it (validation.line_truth_reference)\n"
+        )
+        print(line_truth_reference.summary(line_truth_reference.reference_rows(keys)))
     if not a.no_cli:
         print("\n## `railtwin diagnose` as a command, on every wide-set passage\n")
         rows = cli_timing.time_all(wide_set.case_ids())
