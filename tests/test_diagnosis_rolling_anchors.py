@@ -13,7 +13,7 @@ import json
 import numpy as np
 
 from service.physics.diagnosis import Diagnoser
-from sim_core.diagnosis.estimate import ARRIVAL_CONTACT, record_noise
+from sim_core.diagnosis.estimate import contact_floor, record_noise
 from sim_core.diagnosis.turns import find_anchors, first_impact_after_rolling
 from validation.wide_set import WIDE_DIR, load_case
 
@@ -63,14 +63,19 @@ def test_w30s_anchors_move_from_the_landings_to_the_impacts_and_its_length_is_fo
     f = np.asarray(c.measured.force)
     t = c.measured.t_start + np.arange(f.size) / c.measured.sample_rate
     P, R = c.passage.load, c.passage.radius
-    floor = ARRIVAL_CONTACT * P + 4.0 * record_noise(f)
+    floor = contact_floor(P, record_noise(f))
     largest = find_anchors(t, f, P, R, v).times
-    first = find_anchors(t, f, P, R, v, contact_floor=floor).times
+    walked = find_anchors(t, f, P, R, v, contact_floor=floor)
+    first = walked.times
     # without the walk, the first turn's anchor is the landing 20 ms after the flat's centre
     assert largest[0] - centres[0] > 0.015
     # with it, the trailing corner's impact, within the half flat (2.2 ms) and the chain's
     # delay of the centre
     assert 0.0 < first[0] - centres[0] < 0.004
+    # the second turn arrives bouncing and keeps its landing, 30 ms after the flat: the
+    # anchors' spacing (1.25 turns) is not the period, the fold's is
+    assert abs(first[1] - centres[1]) > 0.02
+    assert abs(walked.period / (centres[1] - centres[0]) - 1.0) < 0.01
     d = Diagnoser(c.site)
     diag, _ = d.diagnose(c.passage, c.measured)
     assert diag.flat is not None and diag.flat.length_low is not None

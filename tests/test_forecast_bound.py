@@ -27,7 +27,7 @@ def test_a_bouncing_long_flat_is_ill_conditioned_at_line_speed() -> None:
 
 def test_the_fits_forecast_misses_are_split_by_the_twins_bound() -> None:
     rows = [r for r in (bound_row(c) for c in ("W30", "W32")) if r is not None]
-    text = summary(rows, fit_misses=["W30", "W32"])
+    text = summary(rows, forecast_misses=["W30", "W32"])
     # W30 is ill-conditioned (bounded); a miss on W32, which the twin forecasts, is the fit's
     assert "of the fit's 2 forecasts outside ±20 %, 1 are on passages" in text
     assert text.rstrip().endswith("the fit's own: W32")

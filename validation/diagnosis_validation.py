@@ -145,12 +145,12 @@ def bounds(rows: list[dict[str, Any]]) -> str:
     length and kind misses (``validation.fit_bound``), from the rows' truth fields."""
     from validation import fit_bound, forecast_bound
 
-    fit_misses = [str(r["case"]) for r in rows if r["line_truth"] is not None and not line_ok(r)]
+    forecast_misses = [str(r["case"]) for r in rows if line_ok(r) is False]
     return "\n".join(
         [
             "\n### What bounds the forecast: the true flat rolled by the twin "
             "(validation.forecast_bound)\n",
-            forecast_bound.summary(forecast_bound.bound_rows(rows), fit_misses),
+            forecast_bound.summary(forecast_bound.bound_rows(rows), forecast_misses),
             "\n### What bounds each length and kind miss: the truth's cost on the fit's "
             "windows (validation.fit_bound)\n",
             fit_bound.summary(fit_bound.fit_rows(rows)),
@@ -201,10 +201,10 @@ def main(argv: list[str] | None = None) -> int:
     # the own generator's line-speed truth where the fit's forecast missed it: the same
     # passage by the test suite's slow reference solver (SciPy), two at a time
     keys = [
-        (seed, int(str(r["case"])[1:]))
+        (int(r["seed"]), int(r["index"]))
         for k, seed in enumerate(seeds if a.own > 0 else [])
         for r in results["own" if k == 0 else f"own_{seed}"]
-        if r["line_truth"] is not None and not line_ok(r)
+        if r["line_truth"] is not None and line_ok(r) is False
     ]
     if keys:
         print(

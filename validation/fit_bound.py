@@ -12,7 +12,8 @@ bound that makes the length interval, it says what kind of miss each one is:
   two apart (the interval covers it);
 - ``model``: the truth costs more than the bound: the twin's windows (a wheel arriving at
   the flat in steady rolling, on the site file's even rail) fit the wrong flat better than
-  the right one, and no search can help.
+  the right one, and no search can help;
+- ``screened``: the screen dismissed the record as a round wheel's, and no fit ran.
 
     .venv/bin/python -m validation.fit_bound [--only W06,W30]
 """
@@ -23,9 +24,12 @@ import sys
 from dataclasses import dataclass
 from typing import Any, Literal
 
+from service.physics.diagnosis import Diagnoser
+from sim_core.diagnosis.estimate import bound_factor
+from validation.truth_bounds import true_depth_factor
 from validation.wide_set import cases_parser, chosen_ids, load_case, run_case
 
-MissKind = Literal["search", "ambiguous", "model"]
+MissKind = Literal["search", "ambiguous", "model", "screened"]
 
 
 @dataclass(frozen=True)
@@ -39,17 +43,21 @@ class FitRow:
     zeta: float
     found_kind: str | None
     found_length: float
-    cost_best: float
-    cost_truth: float
-    bound: float
+    cost_best: float | None
+    cost_truth: float | None
+    bound: float | None
     explained: bool
 
     @classmethod
     def from_result(cls, r: dict[str, Any]) -> FitRow | None:
-        """The row of a validation result (``truth_bounds.fit_fields`` in it), None for a
-        round wheel or a record whose fit compared no windows."""
-        if r["kind"] == "round" or "cost_truth" not in r:
+        """The row of a flat's validation result (``truth_bounds.cost_fields`` in it; a
+        ``KeyError`` if they are not), None for a round wheel."""
+        if r["kind"] == "round":
             return None
+
+        def number(key: str) -> float | None:
+            return None if r[key] is None else float(r[key])
+
         return cls(
             str(r["case"]),
             str(r["kind"]),
@@ -58,16 +66,18 @@ class FitRow:
             float(r["true_damping_ratio"]),
             r["found_kind"],
             float(r["found_length"]),
-            float(r["cost_best"]),
-            float(r["cost_truth"]),
-            float(r["cost_bound"]),
+            number("cost_best"),
+            number("cost_truth"),
+            number("cost_bound"),
             bool(r["explained"]),
         )
 
     @property
     def ratio(self) -> float:
-        """The truth's cost over the answer's."""
-        return self.cost_truth / self.cost_best if self.cost_best > 0 else float("inf")
+        """The truth's cost over the answer's (infinite where no fit ran)."""
+        if self.cost_truth is None or not self.cost_best:
+            return float("inf")
+        return self.cost_truth / self.cost_best
 
     @property
     def length_ok(self) -> bool:
@@ -81,6 +91,8 @@ class FitRow:
     def miss(self) -> MissKind | None:
         if self.length_ok and self.kind_ok:
             return None
+        if self.cost_truth is None or self.bound is None:
+            return "screened"
         if self.ratio < 1.0:
             return "search"
         return "ambiguous" if self.ratio <= self.bound else "model"
@@ -92,8 +104,30 @@ def fit_rows(results: list[dict[str, Any]]) -> list[FitRow]:
 
 
 def fit_row(case_id: str) -> FitRow | None:
-    """The fit of one wide-set passage with its truth's cost (None for a round wheel)."""
-    return FitRow.from_result(run_case(load_case(case_id)))
+    """The fit of one wide-set passage with its truth's cost (None for a round wheel): one
+    diagnosis asked for the truth's cost (which changes nothing of the answer)."""
+    c = load_case(case_id)
+    tr = c.truth
+    if not tr["kind"]:
+        return None
+    length = float(tr["flat_length_m"])
+    df = true_depth_factor(tr["kind"], c.passage.radius, length, float(tr["flat_depth_m"] or 0))
+    d = Diagnoser(c.site)
+    diag, curves = d.diagnose(c.passage, c.measured, compare=[(tr["kind"], length, df)])
+    est = curves.estimate
+    return FitRow(
+        case_id,
+        tr["kind"],
+        length,
+        c.passage.speed * 3.6,
+        c.zeta,
+        diag.flat.kind if diag.flat else None,
+        diag.flat.length if diag.flat else 0.0,
+        est.cost_best if est.compared else None,
+        est.compared[0] if est.compared else None,
+        bound_factor(max(len(est.windows), 1), d.options) if est.compared else None,
+        bool(diag.explained),
+    )
 
 
 def summary(rows: list[FitRow]) -> str:
@@ -106,15 +140,18 @@ def summary(rows: list[FitRow]) -> str:
         lines.append(
             f"| {r.case} | {r.kind} {r.length * 1e3:.1f} mm | {r.speed_kmh:.0f} | {r.zeta:.3f} "
             f"| {r.found_kind or 'none'} {r.found_length * 1e3:.1f} mm | {r.ratio:.2f} "
-            f"| {r.bound:.2f} | {'yes' if r.explained else 'no'} | {r.miss} |"
+            f"| {r.bound or 0.0:.2f} | {'yes' if r.explained else 'no'} | {r.miss} |"
         )
-    counts = {k: sum(r.miss == k for r in misses) for k in ("search", "ambiguous", "model")}
+    counts = {
+        k: sum(r.miss == k for r in misses) for k in ("search", "ambiguous", "model", "screened")
+    }
     lines += [
         "",
         f"- {len(misses)} of {len(rows)} flats miss the length or the kind: "
         f"{counts['model']} model (the truth costs more than the bound on the twin's own "
         f"windows), {counts['ambiguous']} ambiguous (within the bound), {counts['search']} "
-        f"search (the truth costs less than the answer)",
+        f"search (the truth costs less than the answer), {counts['screened']} screened (no fit "
+        f"ran)",
     ]
     return "\n".join(lines)
 

@@ -1,8 +1,8 @@
 """What bounds the line-speed forecast: the true flat rolled by the twin (``make validate``).
 
 The diagnosis forecasts the peak force at line speed by rolling the *fitted* wheel over the
-site's rail. Before blaming the fit for a forecast outside ±20 % of the wide set's
-``line_speed_truth.json``, this asks what the twin gives with everything the fit estimates
+site's rail. Before blaming the fit for a forecast outside ±20 % of the line-speed truth
+(the wide set's ``line_speed_truth.json``, the own generator's re-simulation), this asks what the twin gives with everything the fit estimates
 set to the truth: the true kind, length, depth and phase, the site's exact foundation, at
 the line speed. Two things remain that no fit can supply:
 
@@ -23,6 +23,8 @@ import sys
 from dataclasses import dataclass
 from typing import Any
 
+from service.physics.diagnosis import Diagnoser
+from validation.truth_bounds import forecast_fields, true_depth_factor
 from validation.wide_set import cases_parser, chosen_ids, load_case, run_case
 
 TARGET = 0.2
@@ -45,10 +47,10 @@ class BoundRow:
 
     @classmethod
     def from_result(cls, r: dict[str, Any]) -> BoundRow | None:
-        """The row of a validation result (``truth_bounds.forecast_fields`` in it), None for
-        a round wheel, a passage without line-speed truth, or one the integrator does not
-        resolve."""
-        if r["kind"] == "round" or r.get("line_truth") is None or "line_oracle" not in r:
+        """The row of a flat's validation result (``truth_bounds.forecast_fields`` in it; a
+        ``KeyError`` if they are not), None for a round wheel, a passage without line-speed
+        truth, or one the integrator does not resolve."""
+        if r["kind"] == "round" or r["line_truth"] is None or r["line_oracle"] is None:
             return None
         return cls(
             str(r["case"]),
@@ -82,11 +84,33 @@ def bound_rows(results: list[dict[str, Any]]) -> list[BoundRow]:
 
 def bound_row(case_id: str) -> BoundRow | None:
     """The twin's line-speed peak with the true flat for one wide-set passage, or None."""
-    return BoundRow.from_result(run_case(load_case(case_id)))
+    c = load_case(case_id)
+    tr = c.truth
+    if not tr["kind"] or c.line_peak_measured is None:
+        return None
+    length = float(tr["flat_length_m"])
+    df = true_depth_factor(tr["kind"], c.passage.radius, length, float(tr["flat_depth_m"] or 0))
+    got = forecast_fields(
+        Diagnoser(c.site),
+        c.passage,
+        tr["kind"],
+        length,
+        df,
+        float(tr["phi0"]),
+        c.measured.sample_rate,
+    )
+    r = {
+        "case": case_id,
+        "kind": tr["kind"],
+        "true_length": length,
+        "true_damping_ratio": c.zeta,
+        "line_truth": c.line_peak_measured,
+    }
+    return BoundRow.from_result(r | got)
 
 
-def summary(rows: list[BoundRow], fit_misses: list[str] | None = None) -> str:
-    """The table of the twin's misses with the truth; with ``fit_misses`` (the passages
+def summary(rows: list[BoundRow], forecast_misses: list[str] | None = None) -> str:
+    """The table of the twin's misses with the truth; with ``forecast_misses`` (the passages
     whose fitted forecast is outside ±20 %), how many of those the twin cannot forecast
     even with the truth (off, or ill-conditioned)."""
     n = len(rows)
@@ -113,16 +137,16 @@ def summary(rows: list[BoundRow], fit_misses: list[str] | None = None) -> str:
         f"{', '.join(r.case for r in ill) or 'none'}); {len(rail)} where the even rail's twin "
         f"itself is off ({', '.join(r.case for r in rail) or 'none'})",
     ]
-    if fit_misses is not None:
+    if forecast_misses is not None:
         by_case = {r.case: r for r in rows}
         bounded = [
             c
-            for c in fit_misses
+            for c in forecast_misses
             if c in by_case and (abs(by_case[c].error) > TARGET or by_case[c].ill_conditioned)
         ]
-        rest = [c for c in fit_misses if c not in bounded]
+        rest = [c for c in forecast_misses if c not in bounded]
         lines.append(
-            f"- of the fit's {len(fit_misses)} forecasts outside ±20 %, {len(bounded)} are on "
+            f"- of the fit's {len(forecast_misses)} forecasts outside ±20 %, {len(bounded)} are on "
             f"passages the twin cannot forecast within ±20 % even with the true flat (off, or "
             f"ill-conditioned); the fit's own: {', '.join(rest) or 'none'}"
         )

@@ -28,7 +28,7 @@ from service.physics.diagnosis import Diagnoser
 from sim_core.diagnosis.forward import Flat, damping_for_ratio
 from sim_core.diagnosis.synthetic import Perturbations, SyntheticMeasurement, synthetic_measurement
 from sim_core.passage import Foundation
-from validation.truth_bounds import fit_fields, forecast_fields, true_depth_factor
+from validation.truth_bounds import truth_fields
 from validation.wide_set import fitted_fields
 
 LINE_SPEED = 44.44
@@ -155,11 +155,6 @@ def run_case(i: int, rng: np.random.Generator) -> dict[str, Any]:
     line_truth = None
     bounds: dict[str, Any] = {}
     if tread is not None:
-        df = true_depth_factor(tread.kind, p.radius, tread.length, tread.depth)
-        bounds = {
-            **fit_fields(d, p, mp, tread.kind, tread.length, df),
-            **forecast_fields(d, p, tread.kind, tread.length, df, tread.phase, m.sample_rate),
-        }
         wheel = d.wheel(p)
         lm = synthetic_measurement(
             wheel,
@@ -172,8 +167,12 @@ def run_case(i: int, rng: np.random.Generator) -> dict[str, Any]:
             Perturbations(noise_fraction=0.0, roughness_rms=rough, seed=seed),
         )
         line_truth = float(np.max(lm.force))
+        bounds = truth_fields(
+            d, p, mp, tread.kind, tread.length, tread.depth, tread.phase, line_truth
+        )
     return {
         "case": p.passage_id,
+        "index": i,
         "source": "own",
         "kind": kind,
         "true_length": tread.length if tread else 0.0,
@@ -194,7 +193,7 @@ def run_all(n: int, seed: int) -> list[dict[str, Any]]:
     rng = np.random.default_rng(seed)
     rows = []
     for i in range(n):
-        r = run_case(i, rng)
+        r = run_case(i, rng) | {"seed": seed}
         rows.append(r)
         print(summary_line(r), file=sys.stderr, flush=True)
     return rows

@@ -3,13 +3,13 @@
 Both questions are asked of every flat of both sources as it is validated
 (``wide_set.run_case``, ``own_generator.run_case``), and their answers stored in the row:
 
-- ``fit_fields``: the true flat's cost on the fit's own windows, the answer's cost and
+- ``cost_fields``: the true flat's cost on the fit's own windows, the answer's cost and
   the χ² bound of the length interval (``validation.fit_bound`` classifies each miss);
 - ``forecast_fields``: the twin's line-speed peak with the true flat on the site's exact
   foundation, and its spread under perturbations no measurement resolves
   (``validation.forecast_bound`` says which forecast misses the twin itself cannot avoid).
 
-The fit that answers ``fit_fields`` is a second, untimed run: asking for a candidate's
+``truth_fields`` asks both. The fit that answers ``cost_fields`` is a second, untimed run: asking for a candidate's
 cost changes nothing of the answer (``tests/test_fit_bound.py``) but costs CPU the timed
 run must not include.
 
@@ -50,7 +50,7 @@ def true_depth_factor(kind: FlatKind, radius: float, length: float, depth: float
     return depth / typical_rounded_depth(radius, length)
 
 
-def fit_fields(
+def cost_fields(
     d: Diagnoser,
     passage: WheelPassage,
     measured: MeasuredPassage,
@@ -59,12 +59,12 @@ def fit_fields(
     depth_factor: float,
 ) -> dict[str, Any]:
     """``cost_best`` (the answer's), ``cost_truth`` (the true flat's, on the same windows)
-    and ``cost_bound`` (J_max / J_best of the interval), or ``{}`` where the fit compares
-    no windows (a screened record)."""
+    and ``cost_bound`` (J_max / J_best of the interval); all None where the fit compares no
+    windows (a record the screen dismissed)."""
     _, curves = d.diagnose(passage, measured, compare=[(kind, length, depth_factor)])
     est = curves.estimate
     if not est.compared:
-        return {}
+        return {"cost_best": None, "cost_truth": None, "cost_bound": None}
     return {
         "cost_best": est.cost_best,
         "cost_truth": est.compared[0],
@@ -83,11 +83,12 @@ def forecast_fields(
 ) -> dict[str, Any]:
     """``line_oracle``: the twin's peak at the site's line speed with the true flat (its
     phase as the truth's generator sets it) on the site's exact foundation and even rail;
-    ``line_oracle_low`` / ``_high``: its range over ``PERTURBATIONS``. ``{}`` where the site
-    has no line speed or the integrator resolves none of it."""
+    ``line_oracle_low`` / ``_high``: its range over ``PERTURBATIONS``; all None where the
+    site has no line speed or the integrator resolves none of it."""
+    none: dict[str, Any] = {"line_oracle": None, "line_oracle_low": None, "line_oracle_high": None}
     line = d.site.diagnosis.line_speed
     if line is None:
-        return {}
+        return none
     wheel = d.wheel(passage)
     zeta = damping_ratio_of(wheel.foundation)
     flat = make_flat(passage.radius, kind, length, depth_factor)
@@ -97,10 +98,35 @@ def forecast_fields(
         got = d.line_peak(w, line * dv, flat.with_phase(phase + dphi), sample_rate)
         if got is None:
             if not peaks:
-                return {}
+                return none
             continue
         peaks.append(got)
     return {"line_oracle": peaks[0], "line_oracle_low": min(peaks), "line_oracle_high": max(peaks)}
 
 
-__all__ = ["PERTURBATIONS", "fit_fields", "forecast_fields", "true_depth_factor"]
+def truth_fields(
+    d: Diagnoser,
+    passage: WheelPassage,
+    measured: MeasuredPassage,
+    kind: FlatKind,
+    length: float,
+    depth: float,
+    phase: float,
+    line_truth: float | None,
+) -> dict[str, Any]:
+    """``cost_fields`` and, where there is a line-speed truth to set it against,
+    ``forecast_fields`` of the true flat (``depth`` in m)."""
+    df = true_depth_factor(kind, passage.radius, length, depth)
+    out = cost_fields(d, passage, measured, kind, length, df)
+    if line_truth is not None:
+        out |= forecast_fields(d, passage, kind, length, df, phase, measured.sample_rate)
+    return out
+
+
+__all__ = [
+    "PERTURBATIONS",
+    "cost_fields",
+    "forecast_fields",
+    "true_depth_factor",
+    "truth_fields",
+]

@@ -24,7 +24,7 @@ from schemas.messages import WheelPassage
 from schemas.site import SiteConfig
 from service.physics.diagnosis import Diagnoser, FitCurves
 from service.wire.site import load_site
-from validation.truth_bounds import fit_fields, forecast_fields, true_depth_factor
+from validation.truth_bounds import truth_fields
 
 WIDE_DIR = Path(__file__).resolve().parent / "measured-wide"
 
@@ -88,16 +88,16 @@ def run_case(c: WideCase) -> dict[str, Any]:
     kind = tr["kind"] or "round"
     bounds: dict[str, Any] = {}
     if tr["kind"]:
-        length = float(tr["flat_length_m"])
-        df = true_depth_factor(
-            tr["kind"], c.passage.radius, length, float(tr.get("flat_depth_m") or 0.0)
+        bounds = truth_fields(
+            d,
+            c.passage,
+            c.measured,
+            tr["kind"],
+            float(tr["flat_length_m"]),
+            float(tr.get("flat_depth_m") or 0.0),
+            float(tr["phi0"]),
+            c.line_peak_measured,
         )
-        bounds = {
-            **fit_fields(d, c.passage, c.measured, tr["kind"], length, df),
-            **forecast_fields(
-                d, c.passage, tr["kind"], length, df, float(tr["phi0"]), c.measured.sample_rate
-            ),
-        }
     return {
         "case": c.case_id,
         "source": "wide",

@@ -78,6 +78,7 @@ __all__ = [
     "FitOptions",
     "FlatEstimate",
     "bound_factor",
+    "contact_floor",
     "estimate_flat",
     "explains",
     "make_flat",
@@ -909,6 +910,15 @@ ARRIVAL_CONTACT = 0.1
 4 noise σ: a record that touches zero has lost contact)."""
 
 
+def contact_floor(load: float, noise: float) -> float:
+    """N: the record above which the wheel is in contact (``ARRIVAL_CONTACT``).
+
+    >>> contact_floor(80e3, 1e3)
+    12000.0
+    """
+    return ARRIVAL_CONTACT * load + 4.0 * noise
+
+
 def _clean_arrivals(
     t: NDArray[np.float64],
     f: NDArray[np.float64],
@@ -928,7 +938,7 @@ def _clean_arrivals(
     rolling when the record stays above ``ARRIVAL_CONTACT``·P + 4σ over the
     ``ARRIVAL_LOOK`` s before it; if at least one window does, only those are compared.
     """
-    floor = ARRIVAL_CONTACT * load + 4.0 * noise
+    floor = contact_floor(load, noise)
     look = round(ARRIVAL_LOOK * (t.size - 1) / float(t[-1] - t[0]))
     clean = [
         k
@@ -1132,7 +1142,7 @@ def estimate_flat(
             noise_level=noise,
             screened=True,
         )
-    floor = ARRIVAL_CONTACT * P + 4.0 * noise if options.rolling_anchors else None
+    floor = contact_floor(P, noise) if options.rolling_anchors else None
     anchors = find_anchors(t, f, P, R, speed, contact_floor=floor)
     v = speed
     if anchors.times.size >= 2:

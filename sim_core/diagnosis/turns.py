@@ -51,7 +51,8 @@ PHASES = 720
 class Anchors:
     """One anchor time (s) per turn whose disturbance peak lies inside the record, the turn
     period (s) they imply, how far the disturbance stands out (peak / median), and how long
-    before its anchor a turn's first impact may be (``lead``, s: ``first_impact_lead``)."""
+    before its anchor a turn's first impact may be (``lead``, s: ``first_impact_lead``; off
+    in the fit)."""
 
     times: NDArray[np.float64]
     period: float
@@ -79,7 +80,9 @@ def find_anchors(
 
     With ``contact_floor`` (N: the wheel is in contact while the record is above it), an
     anchor that is a landing after a bounce is moved back to the turn's first impact after
-    rolling (``first_impact_after_rolling``)."""
+    rolling (``first_impact_after_rolling``); where that moves some turns' anchors and not
+    the others' (a wheel arriving bouncing keeps its landing), the period is the fold's,
+    not the anchors' spacing."""
     g = disturbance(t, f, load)
     rate = (t.size - 1) / (t[-1] - t[0])
     best = (-1.0, 0.0, 1.0)
@@ -97,6 +100,7 @@ def find_anchors(
     _, first, period = best
     half = min(0.25 * period, 0.02)
     picks: list[int] = []
+    moved = 0
     tk = t[0] + first
     while tk <= t[-1] + half:
         lo = np.searchsorted(t, tk - half)
@@ -108,7 +112,11 @@ def find_anchors(
             j = a + int(np.argmax(np.abs(f[a:b] - load)))
             if contact_floor is not None:
                 back = round(min(LEAD_BACK[0] * period, LEAD_BACK[1]) * rate)
-                j = first_impact_after_rolling(f, j, contact_floor, back, round(ROLLING * rate))
+                walked = first_impact_after_rolling(
+                    f, j, contact_floor, back, round(ROLLING * rate)
+                )
+                moved += walked != j
+                j = walked
             picks.append(j)
         tk += period
     anchors = [float(t[j]) for j in picks if 0 < j < t.size - 1]
@@ -116,7 +124,11 @@ def find_anchors(
     if times.size >= 2:
         k = np.rint((times - times[0]) / period)
         if np.all(np.diff(k) > 0):
-            period = float(np.polyfit(k, times, 1)[0])
+            fitted = float(np.polyfit(k, times, 1)[0])
+            # a turn walked back to its impact and one kept at its landing time different
+            # events: their spacing is not the period, the fold's is
+            if not 0 < moved < len(picks):
+                period = fitted
     med = float(np.median(g))
     peak = float(np.min(g[np.searchsorted(t, times)])) if times.size else 0.0
     lead = first_impact_lead(t, g, times, period)
@@ -153,9 +165,9 @@ def first_impact_after_rolling(
     i = j
     while True:
         k = i  # back to the start of the contact the peak is in
-        while k > lo and f[k - 1] > floor and i - k < rolling:
+        while k > lo and f[k - 1] > floor and i - k + 1 < rolling:
             k -= 1
-        if i - k >= rolling:
+        if i - k + 1 >= rolling:
             return i  # reached in unbroken contact
         m = k - 1  # back through the flight before it
         while m > lo and f[m] <= floor:
@@ -181,7 +193,8 @@ turn, at most this many s (a lightly damped wheel bounces for tens of ms after a
 def first_impact_lead(
     t: NDArray[np.float64], g: NDArray[np.float64], times: NDArray[np.float64], period: float
 ) -> float:
-    """s: how long before its anchor (the turn's largest peak) a turn's first impact may be.
+    """s: how long before its anchor (the turn's largest peak, or its first impact after
+    rolling: ``first_impact_after_rolling``) a turn's first impact may be.
 
     On a lightly damped foundation a flat's first impact sets the wheel bouncing for tens
     of ms and a later bounce can hit harder than the first impact: the largest peak is then
