@@ -47,11 +47,13 @@ MODELS: dict[str, type[BaseModel]] = {
 
 
 def all_models() -> dict[str, type[BaseModel]]:
-    """Every top-level model: the scenario contract's and the service's (messages, site)."""
+    """Every top-level model: the scenario contract's, the service's (messages, site) and
+    the fleet's alarm (versioned on its own, ``schemas.fleet.FLEET_SCHEMA_VERSION``)."""
+    from schemas.fleet import FleetAlarm
     from schemas.messages import MESSAGE_MODELS
     from schemas.site import SiteConfig
 
-    return {**MODELS, **MESSAGE_MODELS, "SiteConfig": SiteConfig}
+    return {**MODELS, **MESSAGE_MODELS, "SiteConfig": SiteConfig, "FleetAlarm": FleetAlarm}
 
 
 def all_json_schemas() -> dict[str, dict[str, Any]]:

@@ -24,20 +24,15 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field
-
+from schemas.fleet import AlarmKind, AlarmWheel, FleetAlarm, Severity
 from service.fleet.entry import Entry
 from service.fleet.history import FORECAST_LEVELS, force_trend, length_trend, trend_entries
 from service.fleet.limits import LEVELS, FleetLimits, level_index
 from service.fleet.store import AlarmRow, Store, WheelRow
 from service.fleet.trend import crossing
 
-AlarmKind = Literal["verdict_escalated", "forecast_flat_length", "forecast_peak_force"]
-Severity = Literal["info", "warning", "critical"]
-
-FLEET_SCHEMA_VERSION = "1.0"
 DEFAULT_HORIZON_DAYS = 30.0
 MAX_EVIDENCE = 50
 
@@ -47,35 +42,6 @@ _ESCALATION_SEVERITY: dict[str, Severity] = {
     "remove": "critical",
 }
 _FORECAST_SEVERITY: dict[str, Severity] = {"inspect": "info", "remove": "warning"}
-
-
-class AlarmWheel(BaseModel):
-    model_config = ConfigDict(extra="ignore", frozen=True)
-    vehicle_id: str
-    wheelset: int
-    side: Literal["left", "right"]
-
-
-class FleetAlarm(BaseModel):
-    """One alarm, as published on ``railtwin/fleet/alarm/<vehicle_id>/<wheelset>/<side>``."""
-
-    model_config = ConfigDict(extra="ignore", frozen=True)
-
-    schema_version: str = FLEET_SCHEMA_VERSION
-    alarm_id: str = Field(description="<wheel_id>:<kind>:<level>:<episode>")
-    wheel_id: str
-    wheel: AlarmWheel
-    kind: AlarmKind
-    level: Literal["watch", "inspect", "remove"]
-    severity: Severity
-    reason: str
-    evidence: list[str] = Field(description="diagnosis ids <site_id>/<passage_id>")
-    data_time: float = Field(description="passage time of the latest diagnosis, UNIX s")
-    raised_at: float = Field(description="when the fleet raised it, UNIX s")
-    episode: int
-    forecast: dict[str, Any] | None = Field(
-        default=None, description="forecast alarms: the crossing (at, earliest, latest)"
-    )
 
 
 @dataclass(frozen=True)

@@ -32,8 +32,9 @@ from typing import Any, Literal
 
 import zenoh
 
+from schemas.fleet import FleetAlarm
 from service.fleet import keys
-from service.fleet.alarms import DEFAULT_HORIZON_DAYS, FleetAlarm, apply
+from service.fleet.alarms import DEFAULT_HORIZON_DAYS, apply
 from service.fleet.entry import Entry, EntryError, entry_from_payload, speed_of_result
 from service.fleet.history import wheel_document
 from service.fleet.limits import FleetLimits
