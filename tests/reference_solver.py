@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -390,6 +390,31 @@ def _extrema(problem: Problem, res: Result) -> None:
 # ------------------------------------------------------------------------------------
 # analytic constraints (independent of sim_core.constraint)
 # ------------------------------------------------------------------------------------
+
+
+class KinkedTable(Protocol):
+    """A constraint tabulated with its non-smooth points listed (``sim_core``'s table)."""
+
+    def evaluate(self, xq: NDArray[np.float64]) -> NDArray[np.float64]: ...
+
+    def kinks_between(self, x0: float, x1: float) -> NDArray[np.float64]: ...
+
+    def curvature_jumps_between(
+        self, x0: float, x1: float, least: float = 0.0
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]: ...
+
+
+def table_constraint(table: KinkedTable) -> Callable[[float], float]:
+    """y_C^k(x) read from ``table``, one point at a time (what ``Problem`` calls)."""
+    return lambda x: float(table.evaluate(np.array([x]))[0])
+
+
+def table_breaks(table: KinkedTable, t0: float, t1: float, speed: float) -> list[float]:
+    """Times in (t0, t1] of every kink and every curvature jump of ``table`` rolled at
+    ``speed``: where ``solve`` restarts."""
+    x0, x1 = speed * t0, speed * t1
+    jumps, _ = table.curvature_jumps_between(x0, x1, 1e-9)
+    return list(np.sort(np.concatenate([table.kinks_between(x0, x1), jumps])) / speed)
 
 
 def cosine_profile(amplitude: float, wavelength: float) -> Callable[[float], float]:

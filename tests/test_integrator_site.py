@@ -170,18 +170,10 @@ def test_agrees_with_scipy_restarted_at_every_breakpoint(
     ours = simulate_passage(table, dataclasses.replace(spec(1e-10), t0=t0, duration=t1 - t0))
     k = rs.paper_constants()
     prob = rs.Problem(
-        lambda x: float(table.evaluate(np.array([x]))[0]),
-        paper.MASS,
-        paper.LOAD,
-        SPEED,
-        "hertz",
-        k,
-        0.0,
-        0.0,
+        rs.table_constraint(table), paper.MASS, paper.LOAD, SPEED, "hertz", k, 0.0, 0.0
     )
-    jumps, _ = table.curvature_jumps_between(SPEED * t0, SPEED * t1, 1e-9)
-    breaks = np.sort(np.concatenate([table.kinks_between(SPEED * t0, SPEED * t1), jumps])) / SPEED
-    r = rs.solve(prob, prob.static_state(t0), t0, t1, sample_t=ours.t, breaks=list(breaks))
+    breaks = rs.table_breaks(table, t0, t1, SPEED)
+    r = rs.solve(prob, prob.static_state(t0), t0, t1, sample_t=ours.t, breaks=breaks)
     assert [t.kind for t in ours.transitions] == r.kinds and len(r.kinds) >= 2
     dt = float(np.max(np.abs(np.array([t.t for t in ours.transitions]) - r.times())))
     df = float(np.max(np.abs(ours.force - r.force))) / paper.LOAD

@@ -2,7 +2,7 @@
 
 For every flat of both sources the fit is asked, besides its answer, for the cost of the
 true flat (kind, length, depth factor) on the same windows (``estimate_flat(compare=...)``,
-the lowest over the damping ratios searched; ``truth_bounds.fit_fields``, stored in each
+the lowest over the damping ratios searched; ``truth_bounds.cost_fields``, stored in each
 validation row). Set against the answer's cost and the χ²
 bound that makes the length interval, it says what kind of miss each one is:
 
@@ -25,9 +25,15 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 from service.physics.diagnosis import Diagnoser
-from sim_core.diagnosis.estimate import bound_factor
-from validation.truth_bounds import true_depth_factor
-from validation.wide_set import cases_parser, chosen_ids, load_case, run_case
+from validation.truth_bounds import costs_of
+from validation.wide_set import (
+    cases_parser,
+    chosen_ids,
+    fitted_fields,
+    load_case,
+    run_all,
+    true_flat,
+)
 
 MissKind = Literal["search", "ambiguous", "model", "screened"]
 
@@ -107,26 +113,21 @@ def fit_row(case_id: str) -> FitRow | None:
     """The fit of one wide-set passage with its truth's cost (None for a round wheel): one
     diagnosis asked for the truth's cost (which changes nothing of the answer)."""
     c = load_case(case_id)
-    tr = c.truth
-    if not tr["kind"]:
+    flat = true_flat(c)
+    if flat is None:
         return None
-    length = float(tr["flat_length_m"])
-    df = true_depth_factor(tr["kind"], c.passage.radius, length, float(tr["flat_depth_m"] or 0))
     d = Diagnoser(c.site)
-    diag, curves = d.diagnose(c.passage, c.measured, compare=[(tr["kind"], length, df)])
-    est = curves.estimate
-    return FitRow(
-        case_id,
-        tr["kind"],
-        length,
-        c.passage.speed * 3.6,
-        c.zeta,
-        diag.flat.kind if diag.flat else None,
-        diag.flat.length if diag.flat else 0.0,
-        est.cost_best if est.compared else None,
-        est.compared[0] if est.compared else None,
-        bound_factor(max(len(est.windows), 1), d.options) if est.compared else None,
-        bool(diag.explained),
+    diag, curves = d.diagnose(c.passage, c.measured, compare=[flat])
+    return FitRow.from_result(
+        {
+            "case": case_id,
+            "kind": flat[0],
+            "true_length": flat[1],
+            "speed_kmh": c.passage.speed * 3.6,
+            "true_damping_ratio": c.zeta,
+            **fitted_fields(diag, curves, 0.0),
+            **costs_of(curves.estimate, d.options),
+        }
     )
 
 
@@ -158,7 +159,7 @@ def summary(rows: list[FitRow]) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     a = cases_parser("validation.fit_bound", __doc__).parse_args(argv)
-    print(summary(fit_rows([run_case(load_case(cid)) for cid in chosen_ids(a)])))
+    print(summary(fit_rows(run_all(chosen_ids(a)))))
     return 0
 
 

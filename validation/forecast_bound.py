@@ -24,8 +24,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from service.physics.diagnosis import Diagnoser
-from validation.truth_bounds import forecast_fields, true_depth_factor
-from validation.wide_set import cases_parser, chosen_ids, load_case, run_case
+from validation.truth_bounds import forecast_fields
+from validation.wide_set import cases_parser, chosen_ids, load_case, run_all, true_flat
 
 TARGET = 0.2
 """The issue's ±20 % on the point forecast."""
@@ -85,23 +85,22 @@ def bound_rows(results: list[dict[str, Any]]) -> list[BoundRow]:
 def bound_row(case_id: str) -> BoundRow | None:
     """The twin's line-speed peak with the true flat for one wide-set passage, or None."""
     c = load_case(case_id)
-    tr = c.truth
-    if not tr["kind"] or c.line_peak_measured is None:
+    flat = true_flat(c)
+    if flat is None or c.line_peak_measured is None:
         return None
-    length = float(tr["flat_length_m"])
-    df = true_depth_factor(tr["kind"], c.passage.radius, length, float(tr["flat_depth_m"] or 0))
+    kind, length, df = flat
     got = forecast_fields(
         Diagnoser(c.site),
         c.passage,
-        tr["kind"],
+        kind,
         length,
         df,
-        float(tr["phi0"]),
+        float(c.truth["phi0"]),
         c.measured.sample_rate,
     )
     r = {
         "case": case_id,
-        "kind": tr["kind"],
+        "kind": kind,
         "true_length": length,
         "true_damping_ratio": c.zeta,
         "line_truth": c.line_peak_measured,
@@ -155,7 +154,7 @@ def summary(rows: list[BoundRow], forecast_misses: list[str] | None = None) -> s
 
 def main(argv: list[str] | None = None) -> int:
     a = cases_parser("validation.forecast_bound", __doc__).parse_args(argv)
-    print(summary(bound_rows([run_case(load_case(cid)) for cid in chosen_ids(a)])))
+    print(summary(bound_rows(run_all(chosen_ids(a)))))
     return 0
 
 

@@ -79,7 +79,7 @@ def reference_row(seed: int, i: int) -> LineTruthRow | None:
     table = wheel_table(wheel.radius, c.tread, rails, speed * t0, x_end)
     f = wheel.foundation
     prob = rs.Problem(
-        lambda x: float(table.evaluate(np.array([x]))[0]),
+        rs.table_constraint(table),
         wheel.mass,
         wheel.load,
         speed,
@@ -95,16 +95,14 @@ def reference_row(seed: int, i: int) -> LineTruthRow | None:
         f.stiffness,
         f.damping,
     )
-    x_a, x_b = speed * t0, x_end
-    jumps, _ = table.curvature_jumps_between(x_a, x_b, 1e-9)
-    breaks = np.sort(np.concatenate([table.kinks_between(x_a, x_b), jumps])) / speed
+    t1 = float(ours.t[-1])
     r = rs.solve(
         prob,
         prob.static_state(t0),
         t0,
-        float(ours.t[-1]),
+        t1,
         sample_t=ours.t,
-        breaks=list(breaks),
+        breaks=rs.table_breaks(table, t0, x_end / speed, speed),
         rtol=RTOL,
         atol=1e-13,
     )

@@ -24,7 +24,7 @@ from typing import Any
 from schemas.diagnosis import MeasuredPassage
 from schemas.messages import WheelPassage
 from service.physics.diagnosis import Diagnoser
-from sim_core.diagnosis.estimate import bound_factor, make_flat
+from sim_core.diagnosis.estimate import FitOptions, FlatEstimate, bound_factor, make_flat
 from sim_core.diagnosis.forward import (
     FlatKind,
     damping_ratio_of,
@@ -62,13 +62,17 @@ def cost_fields(
     and ``cost_bound`` (J_max / J_best of the interval); all None where the fit compares no
     windows (a record the screen dismissed)."""
     _, curves = d.diagnose(passage, measured, compare=[(kind, length, depth_factor)])
-    est = curves.estimate
+    return costs_of(curves.estimate, d.options)
+
+
+def costs_of(est: FlatEstimate, options: FitOptions) -> dict[str, Any]:
+    """``cost_fields`` of a fit asked for one candidate's cost (``compare``)."""
     if not est.compared:
         return {"cost_best": None, "cost_truth": None, "cost_bound": None}
     return {
         "cost_best": est.cost_best,
         "cost_truth": est.compared[0],
-        "cost_bound": bound_factor(max(len(est.windows), 1), d.options),
+        "cost_bound": bound_factor(max(len(est.windows), 1), options),
     }
 
 
@@ -126,6 +130,7 @@ def truth_fields(
 __all__ = [
     "PERTURBATIONS",
     "cost_fields",
+    "costs_of",
     "forecast_fields",
     "true_depth_factor",
     "truth_fields",

@@ -24,7 +24,8 @@ from schemas.messages import WheelPassage
 from schemas.site import SiteConfig
 from service.physics.diagnosis import Diagnoser, FitCurves
 from service.wire.site import load_site
-from validation.truth_bounds import truth_fields
+from sim_core.diagnosis.forward import FlatKind
+from validation.truth_bounds import true_depth_factor, truth_fields
 
 WIDE_DIR = Path(__file__).resolve().parent / "measured-wide"
 
@@ -40,6 +41,16 @@ class WideCase:
     truth: dict[str, Any]
     zeta: float
     line_peak_measured: float | None
+
+
+def true_flat(c: WideCase) -> tuple[FlatKind, float, float] | None:
+    """(kind, length m, depth factor) of the case's true flat, None for a round wheel."""
+    kind = c.truth["kind"]
+    if not kind:
+        return None
+    length = float(c.truth["flat_length_m"])
+    depth = float(c.truth.get("flat_depth_m") or 0.0)
+    return kind, length, true_depth_factor(kind, c.passage.radius, length, depth)
 
 
 def case_ids(directory: Path = WIDE_DIR) -> list[str]:
