@@ -218,12 +218,17 @@ def test_a_slow_wheels_depth_grid_finds_w39_which_one_depth_misses() -> None:
     for worn ones at speed: docs/diagnosis.md)."""
     from dataclasses import replace
 
-    from sim_core.diagnosis.estimate import DEFAULT_OPTIONS, following_speed
+    from sim_core.diagnosis.estimate import (
+        DEFAULT_OPTIONS,
+        following_speed,
+        shallow_following_speed,
+    )
 
     c = load_case("W39")
     d = Diagnoser(c.site)
     wheel = d.wheel(c.passage)
     assert c.passage.speed <= DEFAULT_OPTIONS.slow_speed_ratio * following_speed(wheel)
+    assert c.passage.speed <= DEFAULT_OPTIONS.slow_speed_ratio * shallow_following_speed(wheel)
     t = c.measured.t_start + np.arange(c.measured.samples) / c.measured.sample_rate
     f = np.asarray(c.measured.force)
     true_length = float(c.truth["flat_length_m"])
@@ -239,13 +244,20 @@ def test_a_slow_wheels_depth_grid_finds_w39_which_one_depth_misses() -> None:
 
 
 def test_only_slow_wheels_get_the_depth_grid() -> None:
-    """The worn kind's coarse grid spans depth factors up to 1.5 x the following speed
-    sqrt(8RP/m)/π, at the middle damping ratio; above it, the factor 1.0 alone."""
-    from sim_core.diagnosis.estimate import DEFAULT_OPTIONS, _coarse_keys, following_speed
+    """The worn kind's coarse grid spans depth factors up to 1.5 x the following speed of
+    the shallowest worn flat searched, sqrt(8RP/(0.7 m))/π, at the middle damping ratio;
+    above it, the factor 1.0 alone."""
+    from sim_core.diagnosis.estimate import (
+        DEFAULT_OPTIONS,
+        _coarse_keys,
+        following_speed,
+        shallow_following_speed,
+    )
 
     c = load_case("W39")
     wheel = Diagnoser(c.site).wheel(c.passage)
-    vc = following_speed(wheel)
+    vc = shallow_following_speed(wheel)
+    assert vc == pytest.approx(following_speed(wheel) / math.sqrt(0.7), rel=1e-12)
     zetas, grid = (0.04, 0.08, 0.16), (0.02, 0.05)
 
     class _P:  # what _coarse_keys reads of a problem
@@ -285,3 +297,33 @@ def test_a_simulation_the_integrator_cannot_resolve_still_gets_a_verdict(
     assert d.peak_force_at_line_speed is None and d.peak_force_at_line_speed_high is None
     assert any("could not be simulated" in r for r in d.reasons)
     assert curves.fitted.shape == curves.measured.shape
+
+
+def test_a_shallow_worn_flat_followed_above_the_nominal_following_speed_is_found() -> None:
+    """Seed 777's o026 of the own generator: worn 49.9 mm at 0.73 x l²/16R and 33 km/h,
+    1.52 x the following speed of a flat of depth l²/16R but 1.30 x its own (a shallower dip
+    is followed faster). Searched at the factor 1.0 alone, which a slow-wheel bound at
+    1.5 x ``following_speed`` gave, the fit settled on 33.9 mm; bounded at 1.5 x the
+    shallowest searched flat's following speed, the depth grid reaches it."""
+    from dataclasses import replace
+
+    from sim_core.diagnosis.estimate import DEFAULT_OPTIONS, following_speed
+    from validation import own_generator
+
+    rng = np.random.default_rng(777)
+    own_generator.skip_cases(26, rng)
+    c = own_generator.measured_case(26, rng)
+    assert c.tread is not None and c.tread.kind == "rounded_flat"
+    wheel = c.diagnoser.wheel(c.passage)
+    ratio = c.passage.speed / following_speed(wheel)
+    assert 1.5 < ratio < DEFAULT_OPTIONS.slow_speed_ratio / math.sqrt(0.7)
+    t = c.measured.t_start + np.arange(c.measured.samples) / c.measured.sample_rate
+    f = np.asarray(c.measured.force)
+    nominal = replace(DEFAULT_OPTIONS, slow_speed_ratio=1.5 * math.sqrt(0.7))
+    before = estimate_flat(wheel, c.passage.speed, t, f, c.diagnoser.sensor, nominal)
+    found = estimate_flat(wheel, c.passage.speed, t, f, c.diagnoser.sensor)
+    true_length = c.tread.length
+    assert found.best_kind == "rounded_flat"
+    assert found.cost_best < 0.5 * before.cost_best
+    assert abs(found.best_length - true_length) < 0.5 * abs(before.best_length - true_length)
+    assert found.length_low <= true_length <= found.length_high

@@ -133,9 +133,10 @@ class FitOptions:
     not kept (docs/diagnosis.md).
 
     ``slow_depth_factors`` / ``slow_speed_ratio``: below ``slow_speed_ratio`` ×
-    ``following_speed`` the wheel follows a worn flat and its depth is told from its
-    length, so the worn kind's coarse grid spans these factors (at the middle damping
-    ratio); faster, ``coarse_depth_factors``.
+    ``shallow_following_speed`` (the following speed of the shallowest worn flat searched)
+    the wheel follows a worn flat and its depth is told from its length, so the worn kind's
+    coarse grid spans these factors (at the middle damping ratio); faster,
+    ``coarse_depth_factors``.
 
     ``small_flat_floors``: a flat whose length interval lies wholly below this many times
     the detection floor and reaches below ``min_length`` is not told from a round wheel on
@@ -541,6 +542,22 @@ def following_speed(wheel: WheelOnSite) -> float:
     return math.sqrt(8.0 * wheel.radius * wheel.load / wheel.mass) / math.pi
 
 
+def shallow_following_speed(wheel: WheelOnSite) -> float:
+    """m/s: the speed up to which a rigid wheel keeps contact over the shallowest worn flat
+    searched (depth factor ``DEPTH_FACTORS[0]``): ``following_speed`` / sqrt(0.7).
+
+    The centre's acceleration over the dip scales with its depth, so a flat of depth factor
+    df is followed up to ``following_speed`` / sqrt(df): a shallow worn flat is still
+    followed where one of depth l²/16R is not (seed 777's o026: 0.73 × l²/16R at 1.52 ×
+    ``following_speed``, 1.30 × its own).
+
+    >>> w = WheelOnSite(537.8, 96762.0, 0.4353, None)
+    >>> round(shallow_following_speed(w) / following_speed(w), 3)
+    1.195
+    """
+    return following_speed(wheel) / math.sqrt(DEPTH_FACTORS[0])
+
+
 def _coarse_keys(
     prob: _Problem,
     kinds: tuple[FlatKind, ...],
@@ -551,11 +568,11 @@ def _coarse_keys(
     """(kind, length, ζ, depth factor) of every kinds' coarse grid, in the order searched.
 
     A worn flat is searched at several depth factors where the wheel (nearly) follows it
-    (``slow_speed_ratio`` × ``following_speed``): the dip's shape then carries the depth
+    (``slow_speed_ratio`` × ``shallow_following_speed``): the dip's shape then carries the depth
     apart from the length, and a long shallow flat fits no length at the factor 1.0. Faster,
     the wheel leaves the flat and depth, length and kind blur, so the extra freedom would
     only take fresh flats for worn ones (docs/diagnosis.md)."""
-    slow = prob.speed <= options.slow_speed_ratio * following_speed(prob.wheel)
+    slow = prob.speed <= options.slow_speed_ratio * shallow_following_speed(prob.wheel)
     keys: list[tuple[FlatKind, float, float, float]] = []
     for kind in kinds:
         dfs: tuple[float, ...] = (1.0,)
