@@ -1,17 +1,23 @@
-"""Numba's start-up without scipy.linalg (``sim_core/__init__.py``'s ``_preload_cython_blas``).
+"""Numba's start-up (``sim_core/__init__.py``): without scipy.linalg
+(``_preload_cython_blas``), and cache loads that leave numba's lowering registries alone
+(``_lean_cache_loads``).
 
 The preload must change only when scipy.linalg is imported, never what anything computes:
 numba's BLAS calls still reach the same Cython module, and a later ``import scipy.linalg``
-finds and uses it. Run in a fresh interpreter, as the preload only acts before numba's
-first compile.
+finds and uses it. The lean cache loads must change only what is imported: a diagnosis
+gives the same numbers to the last bit as with numba's full refresh, and a function the
+cache lacks is still compiled. Run in fresh interpreters, as both act on a process's first
+cache load or compile.
 """
 
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 _SCRIPT = textwrap.dedent(
     """
@@ -60,3 +66,63 @@ def test_numbas_first_compile_does_not_import_scipy_linalg_and_blas_still_works(
     solved = out["solved"]
     assert isinstance(solved, list)
     assert abs(solved[0] - (-4.0)) < 1e-12 and abs(solved[1] - 4.5) < 1e-12
+
+
+_DIAGNOSE = textwrap.dedent(
+    """
+    import io, json, sys
+    from contextlib import redirect_stdout
+    from service.cli.main import main
+    wide, passage = sys.argv[1], sys.argv[2]
+    out = io.StringIO()
+    with redirect_stdout(out):
+        code = main(["diagnose", "--site", f"{wide}/W01.site.toml", "--passage", passage,
+                     "--measured", f"{wide}/W01.csv", "--format", "json"])
+    diagnosis = json.loads(out.getvalue())
+    diagnosis.pop("wall_time")
+    import numba
+
+    @numba.njit(cache=False)
+    def fresh(x):  # not in any cache: compiled in this process
+        return np.sum(np.sqrt(x))
+
+    import numpy as np
+    lowered_before = "numba.np.npyimpl" in sys.modules
+    compiled = fresh(np.array([4.0, 9.0]))
+    print(json.dumps({"code": code, "diagnosis": diagnosis, "lowered": lowered_before,
+                      "compiled": compiled}))
+    """
+)
+
+
+def _diagnose_w01(tmp_path: Path, full_refresh: bool) -> dict[str, object]:
+    from validation.wide_set import WIDE_DIR, load_case
+
+    passage = tmp_path / "W01.passage.json"
+    passage.write_text(load_case("W01").passage.model_dump_json(), encoding="utf-8")
+    env = dict(os.environ)
+    env.pop("RAILTWIN_NUMBA_FULL_REFRESH", None)
+    if full_refresh:
+        env["RAILTWIN_NUMBA_FULL_REFRESH"] = "1"
+    done = subprocess.run(
+        [sys.executable, "-c", _DIAGNOSE, str(WIDE_DIR), str(passage)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=True,
+        env=env,
+    )
+    result: dict[str, object] = json.loads(done.stdout.strip().splitlines()[-1])
+    return result
+
+
+def test_lean_cache_loads_change_what_is_imported_not_what_is_computed(tmp_path: Path) -> None:
+    _diagnose_w01(tmp_path, full_refresh=False)  # fills the cache, should anything lack
+    lean = _diagnose_w01(tmp_path, full_refresh=False)
+    full = _diagnose_w01(tmp_path, full_refresh=True)
+    assert lean["code"] == full["code"] == 0
+    assert lean["diagnosis"] == full["diagnosis"]  # every number, to the last bit
+    # the lowering registries were not imported to load the cached physics...
+    assert lean["lowered"] is False and full["lowered"] is True
+    # ...and a function no cache holds is still compiled (numba's own path)
+    assert lean["compiled"] == full["compiled"] == 5.0
