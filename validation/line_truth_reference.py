@@ -15,7 +15,6 @@ bounces hardest; the table itself is checked against closed forms in ``tests/``.
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import time
 from dataclasses import dataclass
@@ -23,14 +22,8 @@ from multiprocessing import get_context
 
 import numpy as np
 
-from sim_core.diagnosis.forward import (
-    TABLE_MARGIN,
-    RailTables,
-    run_in_length,
-    simulate_passage_run_in,
-    wheel_table,
-)
-from sim_core.diagnosis.synthetic import rough_rail
+from sim_core.diagnosis.forward import wheel_table
+from sim_core.diagnosis.synthetic import Perturbations, simulated_passage
 from tests import reference_solver as rs
 from validation.own_generator import LINE_SPEED, measured_case, skip_cases
 
@@ -63,16 +56,20 @@ def reference_row(seed: int, i: int) -> LineTruthRow | None:
     if c.tread is None:
         return None
     d = c.diagnoser
-    wheel = d.wheel(c.passage)
-    speed, rate = LINE_SPEED, c.measured.sample_rate
-    fine = d.sensor.fine_rate(rate)
-    duration = c.site.length / speed
-    x0 = -run_in_length(wheel.radius) - 2 * TABLE_MARGIN - 1.0
-    x1 = c.site.length + 2 * TABLE_MARGIN + 1.0
-    rails = RailTables(rough_rail(d.physics.base_rail, x0, x1, c.roughness, c.seed))
-    x_end = speed * (duration + 2.0 / rate)
-    ours = simulate_passage_run_in(wheel, speed, c.tread, rails, 0.0, x_end, fine)
-    t_meas = np.arange(math.floor(duration * rate + 1e-9) + 1) / rate
+    rate = c.measured.sample_rate
+    # the own generator's line-speed truth, recomputed: the same passage and chain
+    sim = simulated_passage(
+        d.wheel(c.passage),
+        LINE_SPEED,
+        c.tread,
+        d.physics.base_rail,
+        c.site.length,
+        rate,
+        d.sensor,
+        Perturbations(noise_fraction=0.0, roughness_rms=c.roughness, seed=c.seed),
+    )
+    wheel, speed, rails, x_end, ours = sim.wheel, sim.speed, sim.rails, sim.x_end, sim.output
+    t_meas = sim.t_measure
     peak_ours = float(np.max(d.sensor.measure(ours.t, ours.force, t_meas)))
     start = time.perf_counter()
     t0 = float(ours.t[0])

@@ -45,11 +45,18 @@ from sim_core.diagnosis.forward import (
     simulate_passage_run_in,
 )
 from sim_core.diagnosis.sensor import SensorModel
-from sim_core.passage import Foundation
+from sim_core.passage import Foundation, PassageOutput
 from sim_core.rail import RailProfile
 from sim_core.roughness import power_law_psd, random_roughness
 
-__all__ = ["Perturbations", "SyntheticMeasurement", "rough_rail", "synthetic_measurement"]
+__all__ = [
+    "Perturbations",
+    "SimulatedPassage",
+    "SyntheticMeasurement",
+    "rough_rail",
+    "simulated_passage",
+    "synthetic_measurement",
+]
 
 ROUGHNESS_DX = 1e-3
 """m between the samples of the generated roughness."""
@@ -94,7 +101,25 @@ def rough_rail(rail: RailProfile, x0: float, x1: float, rms: float, seed: int) -
     return RailProfile.sampled(x, rail.height(x) + y)
 
 
-def synthetic_measurement(
+@dataclass(frozen=True)
+class SimulatedPassage:
+    """The true passage behind a synthetic measurement, before the measuring chain.
+
+    ``wheel`` rolls at ``speed`` (both true) over ``rails`` (the rough rail); ``output`` is
+    the simulation from the run-in on, up to ``x_end`` (m), sampled at the chain's fine
+    rate; ``t_measure`` are the site's sample times. A second solver can re-integrate the
+    same passage on ``rails`` (``validation/line_truth_reference.py``).
+    """
+
+    wheel: WheelOnSite
+    speed: float
+    rails: RailTables
+    x_end: float
+    output: PassageOutput
+    t_measure: NDArray[np.float64]
+
+
+def simulated_passage(
     wheel: WheelOnSite,
     speed: float,
     flat: Tread | None,
@@ -103,8 +128,9 @@ def synthetic_measurement(
     sample_rate: float,
     sensor: SensorModel,
     perturbations: Perturbations,
-) -> SyntheticMeasurement:
-    """What the site records of ``wheel`` (reported ``speed``) passing its ``site_length``."""
+) -> SimulatedPassage:
+    """The true passage of ``wheel`` (reported ``speed``) over the site, unmeasured: the
+    rough rail, the true wheel and speed, the run-in, the sample times (noise not drawn)."""
     p = perturbations
     true_speed = speed * (1.0 + p.speed_error)
     true_wheel = wheel
@@ -121,11 +147,29 @@ def synthetic_measurement(
     fine = sensor.fine_rate(sample_rate)
     duration = site_length / speed
     n = math.floor(duration * sample_rate + 1e-9) + 1
-    out = simulate_passage_run_in(
-        true_wheel, true_speed, flat, rails, 0.0, true_speed * (duration + 2.0 / sample_rate), fine
+    x_end = true_speed * (duration + 2.0 / sample_rate)
+    out = simulate_passage_run_in(true_wheel, true_speed, flat, rails, 0.0, x_end, fine)
+    return SimulatedPassage(true_wheel, true_speed, rails, x_end, out, np.arange(n) / sample_rate)
+
+
+def synthetic_measurement(
+    wheel: WheelOnSite,
+    speed: float,
+    flat: Tread | None,
+    rail: RailProfile,
+    site_length: float,
+    sample_rate: float,
+    sensor: SensorModel,
+    perturbations: Perturbations,
+) -> SyntheticMeasurement:
+    """What the site records of ``wheel`` (reported ``speed``) passing its ``site_length``:
+    ``simulated_passage`` through the site's chain, plus noise."""
+    p = perturbations
+    sim = simulated_passage(
+        wheel, speed, flat, rail, site_length, sample_rate, sensor, perturbations
     )
-    t_meas = np.arange(n) / sample_rate
-    measured = sensor.measure(out.t, out.force, t_meas)
+    out, n = sim.output, sim.t_measure.size
+    measured = sensor.measure(out.t, out.force, sim.t_measure)
     rng = np.random.default_rng(p.seed + 7919)
     measured = measured + rng.normal(0.0, p.noise_fraction * wheel.load, n)
-    return SyntheticMeasurement(0.0, sample_rate, measured, true_speed, out.peak_force)
+    return SyntheticMeasurement(0.0, sample_rate, measured, sim.speed, out.peak_force)
