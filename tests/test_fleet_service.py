@@ -158,3 +158,45 @@ def test_cli_wheel_prints_table_and_json(
     assert "not a wheel id" in capsys.readouterr().err
     nobody = ["--connect", free_tcp_endpoint(), "--timeout", "0.5"]
     assert fleet_cli.main(["wheel", "V1/1/left", *nobody]) == fleet_cli.EXIT_FAILURE
+
+
+def test_an_alarm_stored_but_never_published_is_published_on_start(tmp_path: Any) -> None:
+    """The alarm table is an outbox: the service was killed after storing an alarm and
+    before publishing it; the next start publishes it once, and records that it did."""
+    from service.fleet.alarms import apply
+    from service.fleet.limits import FleetLimits
+    from tests.fleet_support import DAY, T0, make_entry
+
+    db = str(tmp_path / "fleet.sqlite")
+    store = open_store(db)
+    store.insert([make_entry("km12", "p0", day=0, verdict="inspect", length=0.045)])
+    stored = apply(store, "V1/1/left", FleetLimits.defaults(), horizon=0.5 * DAY, now=T0)
+    assert [(a.kind, a.level) for a in stored] == [("verdict_escalated", "inspect")]
+    assert len(store.unpublished_alarms()) == 1  # killed here: stored, not published
+    endpoint = free_tcp_endpoint()
+    with (
+        zenoh.open(build_config(listen=[endpoint])) as client_s,
+        zenoh.open(build_config(connect=[endpoint])) as fleet_s,
+    ):
+        got: list[zenoh.Sample] = []
+        sub = client_s.declare_subscriber("railtwin/fleet/alarm/**", got.append)
+        probe = fleet_s.declare_publisher("railtwin/fleet/alarm/V1/1/left")
+        wait_for(lambda: probe.matching_status.matching, what="the alarm subscriber known")
+        probe.undeclare()
+        for start in range(2):  # the restart, then one more: published once only
+            svc = FleetService(fleet_s, store)
+            svc.start(catch_up=False)
+            try:
+                if start == 0:
+                    wait_for(lambda: len(got) == 1, what="the stored alarm published")
+                    wait_for(lambda: not store.unpublished_alarms(), what="its record")
+                    assert svc.status()["alarms_published_late"] == 1
+                else:
+                    assert svc.publish_pending() == 0  # nothing left in the outbox
+                    assert svc.status()["alarms_published_late"] == 0
+            finally:
+                svc.stop()
+        sub.undeclare()
+    doc = json.loads(got[0].payload.to_bytes())
+    assert doc["alarm_id"] == stored[0].alarm_id and len(got) == 1
+    store.close()

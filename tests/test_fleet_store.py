@@ -128,3 +128,31 @@ def test_store_refuses_a_newer_schema(tmp_path: pytest.TempPathFactory) -> None:
     with pytest.raises(StoreError, match="newer"):
         open_store(path)
     assert json.dumps(FleetLimits.defaults().to_json())
+
+
+def test_the_alarm_table_is_an_outbox(db_url: str) -> None:
+    """An alarm is stored unpublished until the service records its publication; alarms
+    stored by a railtwin before migration 4 count as published (they were, when raised)."""
+    limits = FleetLimits.defaults()
+    old = open_store(db_url, migrate=False)
+    assert old.migrate(target=3) == [1, 2, 3]
+    old.insert([make_entry("a", "p0", day=0, verdict="watch", length=0.032)])
+    assert len(apply(old, "V1/1/left", limits, horizon=30 * DAY, now=T0)) == 1
+    old.close()
+    s = open_store(db_url)  # migration 4
+    try:
+        assert s.schema_version() == LATEST >= 4
+        assert s.unpublished_alarms() == []  # raised before the outbox: published then
+        s.insert([make_entry("b", "p1", day=1, verdict="inspect", length=0.045)])
+        raised = apply(s, "V1/1/left", limits, horizon=0.5 * DAY, now=T0 + DAY)
+        assert [(a.kind, a.level) for a in raised] == [("verdict_escalated", "inspect")]
+        pending = s.unpublished_alarms()
+        assert [(r.kind, r.level, r.episode) for r in pending] == [
+            ("verdict_escalated", "inspect", 0)
+        ]
+        a = raised[0]
+        s.mark_published(a.wheel_id, a.kind, a.level, a.episode, T0 + DAY + 1.0)
+        assert s.unpublished_alarms() == []
+        assert len(s.alarms()) == 2  # published or not, both are listed
+    finally:
+        s.close()

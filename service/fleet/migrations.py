@@ -17,6 +17,10 @@ Version history:
    passage, verdict and alarm state; filled from the diagnoses already stored.
 3. ``alarm``: every alarm raised, keyed by (wheel_id, kind, level, episode) so that a
    restarted service never raises the same one again.
+4. ``alarm.published_at``: when the alarm was published (NULL: stored, not yet
+   published). The alarm table is an outbox: a service that stopped between storing an
+   alarm and publishing it publishes it when it starts again. Alarms stored before this
+   version count as published at their ``raised_at``.
 """
 
 from __future__ import annotations
@@ -124,6 +128,15 @@ MIGRATIONS: tuple[Migration, ...] = (
             PRIMARY KEY (wheel_id, kind, level, episode)
         )""",
             "CREATE INDEX alarm_open ON alarm (cleared_at, raised_at)",
+        ),
+    ),
+    Migration(
+        4,
+        "alarms: when each was published (the alarm table as an outbox)",
+        (
+            "ALTER TABLE alarm ADD COLUMN published_at DOUBLE PRECISION",
+            "UPDATE alarm SET published_at = raised_at",
+            "CREATE INDEX alarm_unpublished ON alarm (published_at, raised_at)",
         ),
     ),
 )

@@ -4,7 +4,10 @@
   (only the passage's speed is kept from a PassageResult);
 - a callback only queues the payload; one ingest thread validates, stores in batches
   (one transaction each), evaluates the touched wheels' alarms and publishes each new
-  alarm on ``railtwin/fleet/alarm/<vehicle_id>/<wheelset>/<side>`` (and logs it);
+  alarm on ``railtwin/fleet/alarm/<vehicle_id>/<wheelset>/<side>`` (and logs it); the
+  alarm table is an outbox: an alarm stored and not published (the service stopped
+  between the two, or the put failed) is published on the next start or after the next
+  batch, so every alarm is delivered at least once, under its stable ``alarm_id``;
 - catches up: on start (after subscribing) it queries ``railtwin/*/diagnoses?since=T``,
   and again ``railtwin/<site>/diagnoses?since=T`` whenever a twin's liveliness token
   ``railtwin/<site>/alive`` appears (a twin reachable only later, restarted, or back after
@@ -64,6 +67,7 @@ class Counters:
     rejected: int = 0
     dropped: int = 0
     alarms: int = 0
+    republished: int = 0
     caught_up: int = 0
     last_error: str | None = None
     started_at: float = field(default_factory=time.time)
@@ -98,6 +102,7 @@ class FleetService:
         self._threads: list[threading.Thread] = []
         self._declared: list[Any] = []
         self._catch_up_requests: queue.Queue[str] = queue.Queue()
+        self._outbox_dirty = False
 
     # --- life cycle --------------------------------------------------------------------
 
@@ -212,7 +217,16 @@ class FleetService:
             self.counters.dropped += 1
 
     def _ingest_loop(self) -> None:
+        self._outbox_dirty = True  # on start: what the last run stored and did not publish
         while not self._stop.is_set():
+            if self._outbox_dirty:
+                self._outbox_dirty = False
+                try:
+                    self.publish_pending()
+                except Exception as exc:  # the database: try again after the next batch
+                    self._outbox_dirty = True
+                    self.counters.last_error = f"{type(exc).__name__}: {exc}"
+                    log.exception("publishing the stored alarms failed")
             try:
                 first = self._queue.get(timeout=0.1)
             except queue.Empty:
@@ -226,6 +240,7 @@ class FleetService:
             try:
                 self.ingest(batch)
             except Exception as exc:  # never let one bad batch stop the service
+                self._outbox_dirty = True  # it may have stored an alarm it did not publish
                 self.counters.last_error = f"{type(exc).__name__}: {exc}"
                 log.exception("ingest failed for a batch of %d", len(batch))
             finally:
@@ -260,6 +275,23 @@ class FleetService:
                 raised.append(a)
         return raised
 
+    def publish_pending(self) -> int:
+        """Publish the alarms stored but never published (the service stopped between the
+        two, or the put failed); how many were published now. Called on start and after
+        each batch: the alarm table is an outbox, so an alarm is delivered at least once
+        (a stop between the put and its record delivers it twice, under the same
+        ``alarm_id``)."""
+        done = 0
+        for row in self.store.unpublished_alarms():
+            try:
+                a = FleetAlarm.model_validate_json(row.body)
+            except ValueError as exc:  # stored by this service, so never expected
+                log.error("alarm %s/%s/%s unreadable: %s", row.wheel_id, row.kind, row.level, exc)
+                continue
+            if self._publish_alarm(a, pending=True):
+                done += 1
+        return done
+
     def _remember_speed(self, site_id: str, passage_id: str, speed: float) -> None:
         if self.store.set_speed(site_id, passage_id, speed):
             return
@@ -267,10 +299,16 @@ class FleetService:
         while len(self._speeds) > KEPT_SPEEDS:
             self._speeds.popitem(last=False)
 
-    def _publish_alarm(self, a: FleetAlarm) -> None:
-        self.counters.alarms += 1
+    def _publish_alarm(self, a: FleetAlarm, pending: bool = False) -> bool:
+        """Log and publish ``a``, then record it published; False if the put failed (it
+        stays in the outbox for ``publish_pending``)."""
+        if pending:
+            self.counters.republished += 1
+        else:
+            self.counters.alarms += 1
         log.warning(
-            "ALARM %s %s [%s] %s (evidence: %s)",
+            "ALARM%s %s %s [%s] %s (evidence: %s)",
+            " (stored, published now)" if pending else "",
             a.wheel_id,
             a.level,
             a.severity,
@@ -285,7 +323,11 @@ class FleetService:
                 encoding=JSON.with_schema(f"railtwin.FleetAlarm/{a.schema_version}"),
             )
         except zenoh.ZError as exc:
-            log.warning("alarm %s not published: %s", a.alarm_id, exc)
+            log.warning("alarm %s not published (kept to publish again): %s", a.alarm_id, exc)
+            self._outbox_dirty = True
+            return False
+        self.store.mark_published(a.wheel_id, a.kind, a.level, a.episode, time.time())
+        return True
 
     # --- queries -----------------------------------------------------------------------
 
@@ -371,6 +413,7 @@ class FleetService:
             "rejected": c.rejected,
             "dropped": c.dropped,
             "alarms": c.alarms,
+            "alarms_published_late": c.republished,
             "caught_up": c.caught_up,
             "queued": self._queue.qsize(),
             "last_error": c.last_error,

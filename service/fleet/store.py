@@ -299,6 +299,26 @@ class Store:
                 == 1
             )
 
+    def mark_published(self, wheel_id: str, kind: str, level: str, episode: int, at: float) -> None:
+        """Record that the alarm (wheel_id, kind, level, episode) was published at ``at``
+        (the outbox's second half)."""
+        with self._transaction() as cur:
+            self._exec(
+                cur,
+                "UPDATE alarm SET published_at = ? WHERE wheel_id = ? AND kind = ? AND "
+                "level = ? AND episode = ? AND published_at IS NULL",
+                (at, wheel_id, kind, level, episode),
+            )
+
+    def unpublished_alarms(self, limit: int = 1000) -> list[AlarmRow]:
+        """Alarms stored but not yet published, oldest first (at most ``limit``)."""
+        rows = self._rows(
+            "SELECT wheel_id, kind, level, episode, raised_at, data_time, cleared_at, body "
+            "FROM alarm WHERE published_at IS NULL ORDER BY raised_at LIMIT ?",
+            [limit],
+        )
+        return [AlarmRow(*r) for r in rows]
+
     def clear_alarms(self, wheel_id: str, at: float) -> int:
         """Close the wheel's open alarms (its verdict went back to ok); how many."""
         with self._transaction() as cur:
