@@ -25,15 +25,21 @@ an attribute of ``scipy.linalg``). Anything unexpected leaves numba's own path.
 A third, also for start-up time: numba 0.68's ``Cache.load_overload`` refreshes the whole
 target context before it loads a cached function, which imports and installs every
 lowering registry numba has (``numba.cpython.*``, ``numba.np.*``, typed containers,
-jitclass, ...): 0.18 s of a ``railtwin diagnose`` that must answer within 1 s, for code
-that is loaded as machine code and lowered by nothing. Loading needs only numba's runtime
-(NRT), which that refresh also initialised (numba issue 2198). ``_lean_cache_loads``
-replaces the method, for the pinned numba only, with one that initialises the runtime and
-loads; a function that is not in the cache is compiled by numba's own path, which refreshes
-the context itself. Numba's developers proposed the same (numba PR 9806: refresh on a cache
-hit only where object mode needs it); nothing here uses object mode. Measured on W01:
-``railtwin diagnose`` 0.70 -> 0.45 s. ``tests/test_numba_startup.py`` checks that a fresh
-process gives the same numbers either way, and compiles what the cache lacks.
+jitclass, ...), for code that is loaded as machine code and lowered by nothing. Loading
+needs only numba's runtime (NRT), which that refresh also initialised (numba issue 2198),
+and the LLVM symbols that modules register when imported: numba's C helpers and math
+functions are registered when its CPU context is made, and of the registry modules only
+``numba.cpython.hashing`` registers any (the hash secret, for cached code that hashes;
+``numba.np.ufunc.parallel`` registers its own on first parallel use, and nothing here is
+parallel). ``_lean_cache_loads`` replaces the method, for the pinned numba only, with one
+that imports ``numba.cpython.hashing``, initialises the runtime and loads; a function that
+is not in the cache is compiled by numba's own path, which refreshes the context itself.
+A numba pull request proposed the same (numba PR 9806, refresh on a cache hit only where
+object mode needs it; closed unmerged); nothing in a railtwin process uses object mode.
+Importing ``sim_core`` therefore imports numba (every part of sim_core that computes uses it
+anyway). Measured on W01: the first simulation 0.18 -> 0.08 s, ``railtwin diagnose`` 0.70
+-> 0.56 s. ``tests/test_numba_startup.py`` checks that a fresh process gives the same
+numbers either way, and compiles what the cache lacks, calling cached code.
 """
 
 import os as _os
@@ -100,6 +106,7 @@ def _lean_cache_loads() -> None:
         return
     try:
         import numba
+        import numba.cpython.hashing  # registers the hash secret's LLVM symbols
         from numba.core import caching
         from numba.core.runtime import rtsys
     except ImportError:

@@ -19,6 +19,8 @@ import sys
 import textwrap
 from pathlib import Path
 
+import pytest
+
 _SCRIPT = textwrap.dedent(
     """
     import json, sys
@@ -81,12 +83,13 @@ _DIAGNOSE = textwrap.dedent(
     diagnosis = json.loads(out.getvalue())
     diagnosis.pop("wall_time")
     import numba
+    import numpy as np
+    from sim_core.contact_laws import contact_force
 
     @numba.njit(cache=False)
-    def fresh(x):  # not in any cache: compiled in this process
-        return np.sum(np.sqrt(x))
+    def fresh(x):  # not in any cache: compiled here, calling cached code
+        return np.sum(np.sqrt(x)) + contact_force(1e-4, 0, 1e8, 0.0, 0.0, 0.0)
 
-    import numpy as np
     lowered_before = "numba.np.npyimpl" in sys.modules
     compiled = fresh(np.array([4.0, 9.0]))
     print(json.dumps({"code": code, "diagnosis": diagnosis, "lowered": lowered_before,
@@ -125,4 +128,4 @@ def test_lean_cache_loads_change_what_is_imported_not_what_is_computed(tmp_path:
     # the lowering registries were not imported to load the cached physics...
     assert lean["lowered"] is False and full["lowered"] is True
     # ...and a function no cache holds is still compiled (numba's own path)
-    assert lean["compiled"] == full["compiled"] == 5.0
+    assert lean["compiled"] == full["compiled"] == pytest.approx(5.0 + 1e8 * 1e-6)
