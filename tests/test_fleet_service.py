@@ -167,8 +167,7 @@ def test_an_alarm_stored_but_never_published_is_published_on_start(tmp_path: Any
     from service.fleet.limits import FleetLimits
     from tests.fleet_support import DAY, T0, make_entry
 
-    db = str(tmp_path / "fleet.sqlite")
-    store = open_store(db)
+    store = open_store(str(tmp_path / "fleet.sqlite"))
     store.insert([make_entry("km12", "p0", day=0, verdict="inspect", length=0.045)])
     stored = apply(store, "V1/1/left", FleetLimits.defaults(), horizon=0.5 * DAY, now=T0)
     assert [(a.kind, a.level) for a in stored] == [("verdict_escalated", "inspect")]
@@ -187,16 +186,77 @@ def test_an_alarm_stored_but_never_published_is_published_on_start(tmp_path: Any
             svc = FleetService(fleet_s, store)
             svc.start(catch_up=False)
             try:
+                wait_for(
+                    lambda s=svc: s.counters.outbox_passes >= 1,  # type: ignore[misc]
+                    what="the outbox looked at",
+                )
                 if start == 0:
                     wait_for(lambda: len(got) == 1, what="the stored alarm published")
-                    wait_for(lambda: not store.unpublished_alarms(), what="its record")
-                    assert svc.status()["alarms_published_late"] == 1
-                else:
-                    assert svc.publish_pending() == 0  # nothing left in the outbox
-                    assert svc.status()["alarms_published_late"] == 0
+                assert store.unpublished_alarms() == []
+                status = svc.status()
+                assert status["alarms_published_late"] == (1 if start == 0 else 0)
+                assert status["alarms_waiting"] is False
             finally:
                 svc.stop()
         sub.undeclare()
     doc = json.loads(got[0].payload.to_bytes())
     assert doc["alarm_id"] == stored[0].alarm_id and len(got) == 1
+    store.close()
+
+
+class _FlakyPuts:
+    """A session whose first ``fail`` puts fail as a closed Zenoh session's do."""
+
+    def __init__(self, session: zenoh.Session, fail: int) -> None:
+        self._session, self.fail, self.tries = session, fail, 0
+
+    def put(self, key: str, payload: str, **kw: Any) -> None:
+        self.tries += 1
+        if self.tries <= self.fail:
+            raise zenoh.ZError("session closed (a test)")
+        self._session.put(key, payload, **kw)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._session, name)
+
+
+def test_alarms_whose_put_fails_wait_and_go_out_in_order_after_a_backoff(
+    tmp_path: Any,
+) -> None:
+    """Puts fail for a while: the alarms raised meanwhile are stored, tried again after a
+    backoff, then published oldest first, each once; nothing is lost or reordered."""
+    store = open_store(str(tmp_path / "fleet.sqlite"))
+    endpoint = free_tcp_endpoint()
+    with (
+        zenoh.open(build_config(listen=[endpoint])) as client_s,
+        zenoh.open(build_config(connect=[endpoint])) as fleet_s,
+    ):
+        got: list[zenoh.Sample] = []
+        sub = client_s.declare_subscriber("railtwin/fleet/alarm/**", got.append)
+        probe = fleet_s.declare_publisher("railtwin/fleet/alarm/V1/1/left")
+        wait_for(lambda: probe.matching_status.matching, what="the alarm subscriber known")
+        probe.undeclare()
+        flaky = _FlakyPuts(fleet_s, fail=2)
+        svc = FleetService(flaky, store, horizon=0.0, outbox_retry=0.05)  # type: ignore[arg-type]
+        entries = [("watch", 0.032), ("inspect", 0.045), ("remove", 0.065)]
+        raised = []
+        for day, (verdict, length) in enumerate(entries):  # the ingest thread's calls
+            body = diagnosis_json(
+                "km12", f"p{day}", "V1/1/left", day=day, verdict=verdict, length=length
+            )
+            raised += svc.ingest([("diagnosis", body.encode(), 0.0)])
+        assert [a.level for a in raised] == ["watch", "inspect", "remove"]
+        assert flaky.tries <= 2 and len(store.unpublished_alarms()) >= 2
+        assert svc.status()["alarms_waiting"] is True
+        svc.start(catch_up=False)  # its ingest thread tries again after the backoff
+        try:
+            wait_for(lambda: len(got) == 3, what="the waiting alarms published")
+            wait_for(lambda: not svc.status()["alarms_waiting"], what="the outbox empty")
+        finally:
+            svc.stop()
+        sub.undeclare()
+    levels = [json.loads(g.payload.to_bytes())["level"] for g in got]
+    assert levels == ["watch", "inspect", "remove"]  # in the order raised, each once
+    assert store.unpublished_alarms() == []
+    assert svc.counters.alarms == 3 and svc.counters.published_late >= 2
     store.close()

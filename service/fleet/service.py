@@ -6,8 +6,9 @@
   (one transaction each), evaluates the touched wheels' alarms and publishes each new
   alarm on ``railtwin/fleet/alarm/<vehicle_id>/<wheelset>/<side>`` (and logs it); the
   alarm table is an outbox: an alarm stored and not published (the service stopped
-  between the two, or the put failed) is published on the next start or after the next
-  batch, so every alarm is delivered at least once, under its stable ``alarm_id``;
+  between the two, or a put failed) is published on the next start, or after a backoff
+  of 1 s doubling to 60 s while puts fail, in the order raised, so every alarm is
+  delivered at least once, under its stable ``alarm_id``;
 - catches up: on start (after subscribing) it queries ``railtwin/*/diagnoses?since=T``,
   and again ``railtwin/<site>/diagnoses?since=T`` whenever a twin's liveliness token
   ``railtwin/<site>/alive`` appears (a twin reachable only later, restarted, or back after
@@ -41,7 +42,7 @@ from service.fleet.alarms import DEFAULT_HORIZON_DAYS, apply
 from service.fleet.entry import Entry, EntryError, entry_from_payload, speed_of_result
 from service.fleet.history import wheel_document
 from service.fleet.limits import FleetLimits
-from service.fleet.store import Store
+from service.fleet.store import AlarmRow, Store
 
 log = logging.getLogger("railtwin.fleet")
 
@@ -54,9 +55,25 @@ MAX_QUEUE = 200_000
 MAX_WHEEL_REPLIES = 1000
 KEPT_SPEEDS = 20_000
 """Speeds of results whose diagnosis has not been stored yet, kept at most."""
+OUTBOX_PAGE = 1000
+"""Alarms read from the outbox per query (a pass reads pages until none is left)."""
+MAX_OUTBOX_RETRY = 60.0
+"""s: the longest wait between tries while alarms cannot be published."""
 JSON = zenoh.Encoding.APPLICATION_JSON
 
 Kind = Literal["diagnosis", "result"]
+
+
+def _log_alarm(what: str, a: FleetAlarm) -> None:
+    log.warning(
+        "%s %s %s [%s] %s (evidence: %s)",
+        what,
+        a.wheel_id,
+        a.level,
+        a.severity,
+        a.reason,
+        ", ".join(a.evidence[-5:]),
+    )
 
 
 @dataclass
@@ -67,7 +84,8 @@ class Counters:
     rejected: int = 0
     dropped: int = 0
     alarms: int = 0
-    republished: int = 0
+    published_late: int = 0
+    outbox_passes: int = 0
     caught_up: int = 0
     last_error: str | None = None
     started_at: float = field(default_factory=time.time)
@@ -86,6 +104,7 @@ class FleetService:
         catch_up_margin: float = DEFAULT_CATCH_UP_MARGIN,
         catch_up_timeout: float = 10.0,
         health_period: float = 15.0,
+        outbox_retry: float = 1.0,
     ) -> None:
         self.session = session
         self.store = store
@@ -102,7 +121,10 @@ class FleetService:
         self._threads: list[threading.Thread] = []
         self._declared: list[Any] = []
         self._catch_up_requests: queue.Queue[str] = queue.Queue()
+        self.outbox_retry = outbox_retry
         self._outbox_dirty = False
+        self._outbox_retry_in = outbox_retry / 2.0
+        self._outbox_retry_at = 0.0
 
     # --- life cycle --------------------------------------------------------------------
 
@@ -219,14 +241,8 @@ class FleetService:
     def _ingest_loop(self) -> None:
         self._outbox_dirty = True  # on start: what the last run stored and did not publish
         while not self._stop.is_set():
-            if self._outbox_dirty:
-                self._outbox_dirty = False
-                try:
-                    self.publish_pending()
-                except Exception as exc:  # the database: try again after the next batch
-                    self._outbox_dirty = True
-                    self.counters.last_error = f"{type(exc).__name__}: {exc}"
-                    log.exception("publishing the stored alarms failed")
+            if self._outbox_dirty and time.monotonic() >= self._outbox_retry_at:
+                self._drain_outbox(frozenset())
             try:
                 first = self._queue.get(timeout=0.1)
             except queue.Empty:
@@ -248,7 +264,9 @@ class FleetService:
                     self._queue.task_done()
 
     def ingest(self, batch: list[tuple[Kind, bytes, float]]) -> list[FleetAlarm]:
-        """Store a batch of payloads; the alarms raised (already published)."""
+        """Store a batch of payloads; the alarms raised (logged, stored, and published unless
+        a put failed: then they wait in the outbox, see ``_drain_outbox``). Call it from one
+        thread at a time (the ingest thread, once started)."""
         entries: list[Entry] = []
         for kind, payload, received_at in batch:
             if kind == "result":
@@ -271,50 +289,61 @@ class FleetService:
         raised: list[FleetAlarm] = []
         for wheel_id in dict.fromkeys(e.wheel_id for e in new if e.wheel_id is not None):
             for a in apply(self.store, wheel_id, self.limits, self.horizon):
-                self._publish_alarm(a)
+                self.counters.alarms += 1
+                _log_alarm("ALARM", a)
                 raised.append(a)
+        if raised or self._outbox_dirty:
+            self._outbox_dirty = True
+            if time.monotonic() >= self._outbox_retry_at:
+                self._drain_outbox(frozenset(a.alarm_id for a in raised))
         return raised
 
-    def publish_pending(self) -> int:
-        """Publish the alarms stored but never published (the service stopped between the
-        two, or the put failed); how many were published now. Called on start and after
-        each batch: the alarm table is an outbox, so an alarm is delivered at least once
-        (a stop between the put and its record delivers it twice, under the same
-        ``alarm_id``)."""
-        done = 0
-        for row in self.store.unpublished_alarms():
-            try:
-                a = FleetAlarm.model_validate_json(row.body)
-            except ValueError as exc:  # stored by this service, so never expected
-                log.error("alarm %s/%s/%s unreadable: %s", row.wheel_id, row.kind, row.level, exc)
-                continue
-            if self._publish_alarm(a, pending=True):
-                done += 1
-        return done
+    def _drain_outbox(self, fresh: frozenset[str]) -> None:
+        """Publish every alarm stored and not yet published, oldest first, recording each;
+        ``fresh``: the ids raised in this batch (the others are published late: the service
+        stopped between storing and publishing them, or a put failed).
 
-    def _remember_speed(self, site_id: str, passage_id: str, speed: float) -> None:
-        if self.store.set_speed(site_id, passage_id, speed):
+        The alarm table is an outbox, so an alarm is delivered at least once (a stop between
+        the put and its record delivers it twice, under the same ``alarm_id``), and in the
+        order raised. A failed put stops the pass; the next is tried after ``outbox_retry``
+        s, doubling up to ``MAX_OUTBOX_RETRY``, and the alarms wait meanwhile (new ones
+        behind them). An alarm cleared while it waited is still published: it was raised.
+        Called only from the thread that ingests."""
+        self.counters.outbox_passes += 1
+        try:
+            while True:
+                rows = self.store.unpublished_alarms(OUTBOX_PAGE)
+                for row in rows:
+                    if not self._publish_row(row, fresh):
+                        self._outbox_retry_in = min(2.0 * self._outbox_retry_in, MAX_OUTBOX_RETRY)
+                        self._outbox_retry_at = time.monotonic() + self._outbox_retry_in
+                        return  # still dirty
+                if len(rows) < OUTBOX_PAGE:
+                    break
+        except Exception as exc:  # the database: try again later
+            self.counters.last_error = f"{type(exc).__name__}: {exc}"
+            log.exception("publishing the stored alarms failed")
+            self._outbox_retry_at = time.monotonic() + self._outbox_retry_in
             return
-        self._speeds[(site_id, passage_id)] = speed
-        while len(self._speeds) > KEPT_SPEEDS:
-            self._speeds.popitem(last=False)
+        self._outbox_dirty = False
+        self._outbox_retry_in = self.outbox_retry / 2.0  # the first failure waits outbox_retry
+        self._outbox_retry_at = 0.0
 
-    def _publish_alarm(self, a: FleetAlarm, pending: bool = False) -> bool:
-        """Log and publish ``a``, then record it published; False if the put failed (it
-        stays in the outbox for ``publish_pending``)."""
-        if pending:
-            self.counters.republished += 1
-        else:
-            self.counters.alarms += 1
-        log.warning(
-            "ALARM%s %s %s [%s] %s (evidence: %s)",
-            " (stored, published now)" if pending else "",
-            a.wheel_id,
-            a.level,
-            a.severity,
-            a.reason,
-            ", ".join(a.evidence[-5:]),
-        )
+    def _publish_row(self, row: AlarmRow, fresh: frozenset[str]) -> bool:
+        """Publish one stored alarm and record it; False if the put failed."""
+        try:
+            a = FleetAlarm.model_validate_json(row.body)
+        except ValueError as exc:  # stored by this service, so never expected
+            log.error(
+                "alarm %s/%s/%s/%s unreadable, left out of the outbox (still listed): %s",
+                row.wheel_id,
+                row.kind,
+                row.level,
+                row.episode,
+                exc,
+            )
+            self.store.mark_published(row.wheel_id, row.kind, row.level, row.episode, -1.0)
+            return True
         key = keys.alarm_key(a.wheel.vehicle_id, a.wheel.wheelset, a.wheel.side)
         try:
             self.session.put(
@@ -323,11 +352,25 @@ class FleetService:
                 encoding=JSON.with_schema(f"railtwin.FleetAlarm/{a.schema_version}"),
             )
         except zenoh.ZError as exc:
-            log.warning("alarm %s not published (kept to publish again): %s", a.alarm_id, exc)
-            self._outbox_dirty = True
+            log.warning(
+                "alarm %s not published (kept, tried again in %.0f s): %s",
+                a.alarm_id,
+                min(2.0 * self._outbox_retry_in, MAX_OUTBOX_RETRY),
+                exc,
+            )
             return False
         self.store.mark_published(a.wheel_id, a.kind, a.level, a.episode, time.time())
+        if a.alarm_id not in fresh:
+            self.counters.published_late += 1
+            _log_alarm("ALARM (stored earlier, published now)", a)
         return True
+
+    def _remember_speed(self, site_id: str, passage_id: str, speed: float) -> None:
+        if self.store.set_speed(site_id, passage_id, speed):
+            return
+        self._speeds[(site_id, passage_id)] = speed
+        while len(self._speeds) > KEPT_SPEEDS:
+            self._speeds.popitem(last=False)
 
     # --- queries -----------------------------------------------------------------------
 
@@ -413,7 +456,8 @@ class FleetService:
             "rejected": c.rejected,
             "dropped": c.dropped,
             "alarms": c.alarms,
-            "alarms_published_late": c.republished,
+            "alarms_published_late": c.published_late,
+            "alarms_waiting": self._outbox_dirty,
             "caught_up": c.caught_up,
             "queued": self._queue.qsize(),
             "last_error": c.last_error,
