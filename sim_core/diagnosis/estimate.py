@@ -354,10 +354,16 @@ def _costs_kernel(
     out: NDArray[np.float64],
 ) -> None:
     n = tf.size
+    m = tw.size
+    inv = 1.0 / dtau
+    a = np.empty(m)  # the samples' positions on the template's grid, before the shift
+    for i in range(m):
+        a[i] = (tw[i] - tau0) * inv
     for j in range(shifts.size):
+        b = shifts[j] * inv
         acc = 0.0
-        for i in range(tw.size):
-            u = (tw[i] - shifts[j] - tau0) / dtau
+        for i in range(m):
+            u = a[i] - b
             if u <= 0.0:
                 v = tf[0]
             elif u >= n - 1:
@@ -381,19 +387,33 @@ def _add_on_grid(
     dc: float,
     cost: NDArray[np.float64],
 ) -> None:
-    """total[i, j] += the window's ``cost`` (sampled every ``dc`` from ``c0``, held at its
-    ends) linearly interpolated at the flat-centre time s0[i] + turns·period[j]."""
+    """total[j, i] += the window's ``cost`` (sampled every ``dc`` from ``c0``, held at its
+    ends) linearly interpolated at the flat-centre time s0[i] + turns·period[j].
+
+    ``s0`` is a uniform grid with the cost's step ``dc`` (as ``_align_periodic`` makes
+    both): along a row the position on the cost's grid moves by one sample, so the
+    interpolation weight is the row's and the row is three plain loops (held at the start,
+    interpolated, held at the end), which the compiler vectorises. The row index is the
+    period's (rows contiguous)."""
     n = cost.size
-    for i in range(s0.size):
-        for j in range(period.size):
-            u = (s0[i] + turns * period[j] - c0) / dc
-            if u <= 0.0:
-                total[i, j] += cost[0]
-            elif u >= n - 1:
-                total[i, j] += cost[n - 1]
-            else:
-                k = int(u)
-                total[i, j] += cost[k] + (u - k) * (cost[k + 1] - cost[k])
+    ns = s0.size
+    inv = 1.0 / dc
+    for j in range(period.size):
+        u0 = (s0[0] + turns * period[j] - c0) * inv
+        k0 = math.floor(u0)
+        w = u0 - k0
+        # u = u0 + i: held at cost[0] while u <= 0, at cost[n-1] once u >= n-1
+        i_lo = min(max(math.floor(-u0) + 1, 0), ns)
+        i_hi = min(max(math.ceil(n - 1 - u0), i_lo), ns)
+        row = total[j]
+        first, last = cost[0], cost[n - 1]
+        for i in range(i_lo):
+            row[i] += first
+        for i in range(i_lo, i_hi):
+            k = k0 + i
+            row[i] += cost[k] + w * (cost[k + 1] - cost[k])
+        for i in range(i_hi, ns):
+            row[i] += last
 
 
 def _arrival_costs(
@@ -436,14 +456,15 @@ def _align_periodic(
     )
     n_t = max(3, int(np.ceil((t_hi - t_lo) * n_max / SHIFT_STEP)) + 1)
     t_grid = np.linspace(t_lo, t_hi, n_t)
-    total = np.zeros((s0_grid.size, t_grid.size))
+    total = np.zeros((t_grid.size, s0_grid.size))
     for k, (tw, fw) in enumerate(windows):
         lo = s0_grid[0] + n[k] * t_lo - SHIFT_STEP
         hi = s0_grid[-1] + n[k] * t_hi + SHIFT_STEP
         sk = np.arange(lo, hi + 0.5 * SHIFT_STEP, SHIFT_STEP)
         ck = _arrival_costs(templates, tw, fw, sk)
         _add_on_grid(total, s0_grid, float(n[k]), t_grid, float(sk[0]), SHIFT_STEP, ck)
-    i, j = np.unravel_index(int(np.argmin(total)), total.shape)
+    # the first minimum in (s0, period) order, as ties have always been broken
+    i, j = np.unravel_index(int(np.argmin(total.T)), (s0_grid.size, t_grid.size))
     s0, period = float(s0_grid[i]), float(t_grid[j])
     dt = (t_grid[1] - t_grid[0]) if t_grid.size > 1 else 0.0
     fine_s = s0 + np.linspace(-SHIFT_STEP, SHIFT_STEP, 11)
