@@ -17,6 +17,19 @@ from service.wire.zenoh_session import build_config, free_tcp_endpoint
 from tests.fleet_support import FakeTwin, diagnosis_json, wait_for
 
 
+def _listen_for_alarms(
+    client: zenoh.Session, fleet: zenoh.Session
+) -> tuple[list[zenoh.Sample], zenoh.Subscriber[None]]:
+    """The client's subscriber to every alarm (and the list it fills), once the fleet's
+    session knows of it (else the first alarms could be published to nobody)."""
+    got: list[zenoh.Sample] = []
+    sub = client.declare_subscriber("railtwin/fleet/alarm/**", got.append)
+    probe = fleet.declare_publisher("railtwin/fleet/alarm/V1/1/left")
+    wait_for(lambda: probe.matching_status.matching, what="the alarm subscriber known")
+    probe.undeclare()
+    return got, sub
+
+
 @pytest.fixture
 def net(db_url: str) -> Iterator[dict[str, Any]]:
     """Two fake twins on one listening session, a fleet service (on SQLite, then on
@@ -34,11 +47,7 @@ def net(db_url: str) -> Iterator[dict[str, Any]]:
         publish=False,
     )
     svc = FleetService(fleet_s, store, horizon=30 * 86400.0)
-    alarms: list[zenoh.Sample] = []
-    sub = client_s.declare_subscriber("railtwin/fleet/alarm/**", alarms.append)
-    probe = fleet_s.declare_publisher("railtwin/fleet/alarm/V1/1/left")
-    wait_for(lambda: probe.matching_status.matching, what="the alarm subscriber known")
-    probe.undeclare()
+    alarms, sub = _listen_for_alarms(client_s, fleet_s)
     svc.start()
     try:
         yield {
@@ -177,11 +186,7 @@ def test_an_alarm_stored_but_never_published_is_published_on_start(tmp_path: Any
         zenoh.open(build_config(listen=[endpoint])) as client_s,
         zenoh.open(build_config(connect=[endpoint])) as fleet_s,
     ):
-        got: list[zenoh.Sample] = []
-        sub = client_s.declare_subscriber("railtwin/fleet/alarm/**", got.append)
-        probe = fleet_s.declare_publisher("railtwin/fleet/alarm/V1/1/left")
-        wait_for(lambda: probe.matching_status.matching, what="the alarm subscriber known")
-        probe.undeclare()
+        got, sub = _listen_for_alarms(client_s, fleet_s)
         for start in range(2):  # the restart, then one more: published once only
             svc = FleetService(fleet_s, store)
             svc.start(catch_up=False)
@@ -231,11 +236,7 @@ def test_alarms_whose_put_fails_wait_and_go_out_in_order_after_a_backoff(
         zenoh.open(build_config(listen=[endpoint])) as client_s,
         zenoh.open(build_config(connect=[endpoint])) as fleet_s,
     ):
-        got: list[zenoh.Sample] = []
-        sub = client_s.declare_subscriber("railtwin/fleet/alarm/**", got.append)
-        probe = fleet_s.declare_publisher("railtwin/fleet/alarm/V1/1/left")
-        wait_for(lambda: probe.matching_status.matching, what="the alarm subscriber known")
-        probe.undeclare()
+        got, sub = _listen_for_alarms(client_s, fleet_s)
         flaky = _FlakyPuts(fleet_s, fail=2)
         svc = FleetService(flaky, store, horizon=0.0, outbox_retry=0.05)  # type: ignore[arg-type]
         entries = [("watch", 0.032), ("inspect", 0.045), ("remove", 0.065)]
