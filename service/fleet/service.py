@@ -315,7 +315,7 @@ class FleetService:
                 rows = self.store.unpublished_alarms(OUTBOX_PAGE)
                 for row in rows:
                     if not self._publish_row(row, fresh):
-                        self._outbox_retry_in = min(2.0 * self._outbox_retry_in, MAX_OUTBOX_RETRY)
+                        self._outbox_retry_in = self._next_retry()
                         self._outbox_retry_at = time.monotonic() + self._outbox_retry_in
                         return  # still dirty
                 if len(rows) < OUTBOX_PAGE:
@@ -328,6 +328,11 @@ class FleetService:
         self._outbox_dirty = False
         self._outbox_retry_in = self.outbox_retry / 2.0  # the first failure waits outbox_retry
         self._outbox_retry_at = 0.0
+
+    def _next_retry(self) -> float:
+        """s until the next try after a failed put: twice the last wait, at most
+        ``MAX_OUTBOX_RETRY``."""
+        return min(2.0 * self._outbox_retry_in, MAX_OUTBOX_RETRY)
 
     def _publish_row(self, row: AlarmRow, fresh: frozenset[str]) -> bool:
         """Publish one stored alarm and record it; False if the put failed."""
@@ -355,7 +360,7 @@ class FleetService:
             log.warning(
                 "alarm %s not published (kept, tried again in %.0f s): %s",
                 a.alarm_id,
-                min(2.0 * self._outbox_retry_in, MAX_OUTBOX_RETRY),
+                self._next_retry(),
                 exc,
             )
             return False

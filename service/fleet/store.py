@@ -57,6 +57,8 @@ ENTRY_COLUMNS = (
     "body",
 )
 _COLS = ", ".join(ENTRY_COLUMNS)
+_ALARM_COLS = "wheel_id, kind, level, episode, raised_at, data_time, cleared_at, body"
+"""The alarm table's columns in ``AlarmRow``'s order."""
 _INSERT = (
     f"INSERT INTO diagnosis ({_COLS}) VALUES ({', '.join('?' * len(ENTRY_COLUMNS))}) "
     "ON CONFLICT (site_id, passage_id) DO NOTHING"
@@ -313,8 +315,8 @@ class Store:
     def unpublished_alarms(self, limit: int = 1000) -> list[AlarmRow]:
         """Alarms stored but not yet published, oldest first (at most ``limit``)."""
         rows = self._rows(
-            "SELECT wheel_id, kind, level, episode, raised_at, data_time, cleared_at, body "
-            "FROM alarm WHERE published_at IS NULL ORDER BY raised_at LIMIT ?",
+            f"SELECT {_ALARM_COLS} FROM alarm WHERE published_at IS NULL "
+            "ORDER BY raised_at LIMIT ?",
             [limit],
         )
         return [AlarmRow(*r) for r in rows]
@@ -401,10 +403,7 @@ class Store:
     def alarms(
         self, open_only: bool = True, wheel_id: str | None = None, limit: int = 1000
     ) -> list[AlarmRow]:
-        sql = (
-            "SELECT wheel_id, kind, level, episode, raised_at, data_time, cleared_at, body "
-            "FROM alarm"
-        )
+        sql = f"SELECT {_ALARM_COLS} FROM alarm"
         cond, params = [], []
         if open_only:
             cond.append("cleared_at IS NULL")
