@@ -208,6 +208,11 @@ def test_diagnose_command_leaves_quickly_with_its_output_whole(tmp_path: Path) -
     assert bad.returncode == 2 and "missing.csv" in bad.stderr
 
 
+def _record(m: MeasuredPassage) -> tuple[np.ndarray, np.ndarray]:
+    """(sample times, forces) of a measured passage, as ``Diagnoser.diagnose`` reads it."""
+    return m.t_start + np.arange(m.samples) / m.sample_rate, np.asarray(m.force)
+
+
 def test_a_slow_wheels_depth_grid_finds_w39_which_one_depth_misses() -> None:
     """W39 (worn 107.7 mm, 0.8 x l²/16R, 28 km/h): the wheel follows the shallow flat
     (28 km/h against a following speed of 28.7 km/h), so the dip's depth fixes the depth
@@ -229,8 +234,7 @@ def test_a_slow_wheels_depth_grid_finds_w39_which_one_depth_misses() -> None:
     wheel = d.wheel(c.passage)
     assert c.passage.speed <= DEFAULT_OPTIONS.slow_speed_ratio * following_speed(wheel)
     assert c.passage.speed <= DEFAULT_OPTIONS.slow_speed_ratio * shallow_following_speed(wheel)
-    t = c.measured.t_start + np.arange(c.measured.samples) / c.measured.sample_rate
-    f = np.asarray(c.measured.force)
+    t, f = _record(c.measured)
     true_length = float(c.truth["flat_length_m"])
     one_depth = estimate_flat(
         wheel, c.passage.speed, t, f, d.sensor, replace(DEFAULT_OPTIONS, slow_speed_ratio=0.0)
@@ -317,8 +321,7 @@ def test_a_shallow_worn_flat_followed_above_the_nominal_following_speed_is_found
     wheel = c.diagnoser.wheel(c.passage)
     ratio = c.passage.speed / following_speed(wheel)
     assert 1.5 < ratio < DEFAULT_OPTIONS.slow_speed_ratio / math.sqrt(0.7)
-    t = c.measured.t_start + np.arange(c.measured.samples) / c.measured.sample_rate
-    f = np.asarray(c.measured.force)
+    t, f = _record(c.measured)
     nominal = replace(DEFAULT_OPTIONS, slow_speed_ratio=1.5 * math.sqrt(0.7))
     before = estimate_flat(wheel, c.passage.speed, t, f, c.diagnoser.sensor, nominal)
     found = estimate_flat(wheel, c.passage.speed, t, f, c.diagnoser.sensor)
