@@ -59,6 +59,7 @@ from sim_core.integrate_types import (
     table_of,
 )
 from sim_core.integrator import integrate, jump_allowance
+from sim_core.track.spec import Crib, TrackSpec
 
 RESOLUTION_STEP = 3.0
 """A step in contact advances the wheel by at most this many ``table.resolution``: the
@@ -151,10 +152,12 @@ class PassageSpec:
     duration: float
     sample_rate: float
     contact: ContactModel
-    foundation: Foundation = field(default_factory=Foundation.rigid)
+    foundation: Foundation | TrackSpec = field(default_factory=Foundation.rigid)
     initial: InitialState | None = None
     rtol: float = 1e-9
     t0: float = 0.0
+    cribs: tuple[Crib, ...] = ()
+    """The detector's cribs (a rail on supports only): each gets a channel in the output."""
 
     def __post_init__(self) -> None:
         for name in ("mass", "load", "speed", "duration", "sample_rate", "rtol"):
@@ -165,6 +168,8 @@ class PassageSpec:
             raise ValueError(f"passage: t0 must be finite, got {self.t0!r}")
         if self.rtol < 1e-14:
             raise ValueError(f"passage: rtol {self.rtol} is below what double precision can honour")
+        if self.cribs and not isinstance(self.foundation, TrackSpec):
+            raise ValueError("passage: cribs need a rail on supports (a discrete or slab track)")
 
 
 class Transition(NamedTuple):
@@ -211,6 +216,8 @@ class PassageOutput:
     min_force: float
     max_indentation: float
     time_out_of_contact: float
+    channels: dict[str, NDArray[np.float64]] = field(default_factory=dict)
+    """Per crib id, Q(x_a) − Q(x_b) at the samples (N); empty without a detector."""
 
 
 def _transitions(rows: NDArray[np.float64], speed: float) -> tuple[Transition, ...]:
@@ -277,15 +284,26 @@ def simulate_passage(
     records the largest indentation at each contact point while plastic, every
     ``dent_spacing`` metres of wheel travel (default ``DENT_SPACING``).
     """
+    if isinstance(spec.foundation, TrackSpec):
+        from sim_core.track.passage import simulate_on_track
+
+        return simulate_on_track(
+            table,
+            spec,
+            spec.foundation,
+            track_dents=track_dents,
+            dent_spacing=DENT_SPACING if dent_spacing is None else dent_spacing,
+        )
     law = spec.contact.law
     if track_dents is None:
         track_dents = law == ContactLaw.HERTZ_PLASTIC
     if dent_spacing is None:
         dent_spacing = DENT_SPACING
+    foundation = spec.foundation
     v = spec.speed
     t0 = spec.t0
     t1 = t0 + spec.duration
-    compliant = spec.foundation.is_compliant
+    compliant = foundation.is_compliant
     scale0 = 1.0
     if table.stiffness_scale.size:
         scale0 = float(np.interp(v * t0, table.x, table.stiffness_scale))
@@ -293,7 +311,7 @@ def simulate_passage(
     k_lin = 1.5 * spec.contact.coefficient * scale0 * math.sqrt(d0)
     omega0 = math.sqrt(k_lin / spec.mass)
     ck0 = float(table.evaluate(np.array([v * t0]))[0])
-    ym0 = -spec.load / spec.foundation.stiffness if compliant else 0.0
+    ym0 = -spec.load / foundation.stiffness if compliant else 0.0
     init = spec.initial or InitialState()
     y0 = np.array(
         [
@@ -317,9 +335,9 @@ def simulate_passage(
         load=spec.load,
         speed=v,
         compliant=compliant,
-        f_mass=spec.foundation.mass if compliant else 1.0,
-        f_stiff=spec.foundation.stiffness if compliant else 0.0,
-        f_damp=spec.foundation.damping if compliant else 0.0,
+        f_mass=foundation.mass if compliant else 1.0,
+        f_stiff=foundation.stiffness if compliant else 0.0,
+        f_damp=foundation.damping if compliant else 0.0,
         rtol=spec.rtol,
         atol_y=spec.rtol * d0,
         atol_v=spec.rtol * d0 * omega0,

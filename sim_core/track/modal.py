@@ -1,0 +1,247 @@
+"""The finite track reduced to its modes: a diagonal first-order system the stepper advances exactly.
+
+From M, C, K (``sim_core.track.assembly``):
+
+1. the undamped modes up to ``cutoff`` Hz, mass-normalised (Φ, ω²);
+2. the non-proportional damping projected on them, Φᵀ C Φ, and the first-order
+   system of (q, q̇) diagonalised: complex modes ζ with ζ̇ = λ·ζ + g(x)·F, where
+   the contact force F pushes the rail down at x through the element's shape
+   functions. Conjugate pairs are kept once, with weight 2;
+3. what the truncation leaves out, kept statically: the residual flexibility of
+   the modes above the cutoff (Kᵀ⁻¹ less the modal sum) on every element, and
+   the element's own "bubble", the local deflection under a point load between
+   its nodes (``beam.bubble_compliance``). Both act in series with the contact.
+
+The rail under the wheel is then w(x) = Σ weight·Re(h_j(x)·ζ_j) − r(x)·F, with
+h and g interpolated from the nodal coefficients by the element's shape
+functions, and a crib's channel is F inside the crib plus the rail's inertia
+between its gauges, Σ weight·Re(a_ij·ζ̇_j) (MODEL.md §8).
+
+Worked example (the static point compliance of the reduced model equals the
+finite element one, whatever the cutoff):
+
+    >>> from sim_core.track.spec import Support, TrackSpec
+    >>> t = TrackSpec.slab(sleeper_spacing=0.6, first_sleeper=0.0, pad=Support(6e7, 1.5e4))
+    >>> mt = reduce_track(t, 0.0, 1.2, cutoff=1500.0)
+    >>> abs(mt.static_compliance(0.3) / mt.fe_static_compliance(0.3) - 1) < 1e-9
+    True
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+from numpy.typing import NDArray
+
+from sim_core.track.assembly import TrackMatrices, assemble
+from sim_core.track.beam import (
+    bubble_compliance,
+    deflection_integral,
+    deflection_shapes,
+    shear_ratio,
+)
+from sim_core.track.layout import ABSORBER_BAYS, ELEMENTS_PER_BAY, MARGIN_BAYS, TrackLayout, layout
+from sim_core.track.spec import Crib, TrackSpec
+
+CUTOFF = 4000.0
+"""Highest undamped track frequency kept as a mode, Hz (convergence: docs/MODEL.md §8)."""
+
+MAX_MODES = 800
+"""At most this many modes: the work per step grows with them (a documented limit)."""
+
+BUBBLE_POINTS = 33
+"""Samples of an element's bubble compliance over ξ in [0, 1] (interpolated linearly)."""
+
+
+class TrackTooLarge(ValueError):
+    """The finite track would need more modes than ``MAX_MODES``."""
+
+
+@dataclass(frozen=True, eq=False)
+class ModalTrack:
+    """The reduced track: what the compiled stepper reads (see the module's docstring)."""
+
+    track: TrackSpec
+    layout: TrackLayout
+    cutoff: float
+    lam: NDArray[np.complex128]
+    weight: NDArray[np.float64]
+    out_w: NDArray[np.complex128]
+    inp: NDArray[np.complex128]
+    elem_x: NDArray[np.float64]
+    elem_len: NDArray[np.float64]
+    elem_phi: NDArray[np.float64]
+    resid: NDArray[np.float64]
+    bubble: NDArray[np.float64]
+    crib_ids: tuple[str, ...]
+    crib_lo: NDArray[np.float64]
+    crib_hi: NDArray[np.float64]
+    crib_rows: NDArray[np.complex128]
+    fe_compliance_blocks: NDArray[np.float64]
+
+    @property
+    def n_modes(self) -> int:
+        return int(self.lam.size)
+
+    def element_of(self, x: float) -> int:
+        return int(
+            np.clip(np.searchsorted(self.elem_x, x, side="right") - 1, 0, self.elem_x.size - 1)
+        )
+
+    def _shapes(self, x: float) -> tuple[int, NDArray[np.float64]]:
+        e = self.element_of(x)
+        xi = (x - self.elem_x[e]) / self.elem_len[e]
+        return e, deflection_shapes(xi, float(self.elem_len[e]), float(self.elem_phi[e]))
+
+    def residual_compliance(self, x: float) -> float:
+        """r(x), m/N: the static compliance the kept modes leave out (truncation and bubble)."""
+        e, n = self._shapes(x)
+        xi = (x - self.elem_x[e]) / self.elem_len[e]
+        grid = np.linspace(0.0, 1.0, BUBBLE_POINTS)
+        return float(n @ self.resid[e] @ n + np.interp(xi, grid, self.bubble[e]))
+
+    def static_compliance(self, x: float) -> float:
+        """The reduced model's static point compliance at x, m/N (modes plus residual)."""
+        e, n = self._shapes(x)
+        d = slice(2 * e, 2 * e + 4)
+        h = n @ self.out_w[d]
+        g = n @ self.inp[d]
+        # a unit downward force holds ζ = -g/λ; the rail moves by Σ weight·Re(h·ζ) (down)
+        modal = float(np.sum(self.weight * (h * g / self.lam).real))
+        return modal + self.residual_compliance(x)
+
+    def fe_static_compliance(self, x: float) -> float:
+        """The finite-element model's static point compliance at x (with the bubble), m/N."""
+        e, n = self._shapes(x)
+        xi = (x - self.elem_x[e]) / self.elem_len[e]
+        grid = np.linspace(0.0, 1.0, BUBBLE_POINTS)
+        return float(n @ self.fe_compliance_blocks[e] @ n + np.interp(xi, grid, self.bubble[e]))
+
+
+def reduce_track(
+    track: TrackSpec,
+    x0: float,
+    x1: float,
+    cribs: tuple[Crib, ...] = (),
+    *,
+    cutoff: float = CUTOFF,
+    margin_bays: int = MARGIN_BAYS,
+    absorber_bays: int = ABSORBER_BAYS,
+    elements_per_bay: int = ELEMENTS_PER_BAY,
+) -> ModalTrack:
+    """The modal track for a wheel from ``x0`` to ``x1`` (cached: the same arguments, the same object)."""
+    return _reduce(
+        track,
+        round(x0, 9),
+        round(x1, 9),
+        cribs,
+        cutoff,
+        margin_bays,
+        absorber_bays,
+        elements_per_bay,
+    )
+
+
+@functools.lru_cache(maxsize=8)
+def _reduce(
+    track: TrackSpec,
+    x0: float,
+    x1: float,
+    cribs: tuple[Crib, ...],
+    cutoff: float,
+    margin_bays: int,
+    absorber_bays: int,
+    elements_per_bay: int,
+) -> ModalTrack:
+    gauges = tuple(g for c in cribs for g in (c.x_a, c.x_b))
+    lay = layout(
+        track,
+        x0,
+        x1,
+        gauges=gauges,
+        margin_bays=margin_bays,
+        absorber_bays=absorber_bays,
+        elements_per_bay=elements_per_bay,
+    )
+    mats = assemble(track, lay)
+    return _modal(mats, cutoff, cribs)
+
+
+def _modal(mats: TrackMatrices, cutoff: float, cribs: tuple[Crib, ...]) -> ModalTrack:
+    lay = mats.layout
+    nr = mats.n_rail_dofs
+    w2max = (2.0 * np.pi * cutoff) ** 2
+    w2, phi = sla.eigh(mats.k, mats.m, subset_by_value=(-np.inf, w2max), driver="gvx")
+    n = w2.size
+    if n > MAX_MODES:
+        raise TrackTooLarge(
+            f"the track model needs {n} modes below {cutoff:g} Hz, more than {MAX_MODES}: "
+            "shorten the simulated stretch"
+        )
+    cr = phi.T @ mats.c @ phi
+    a = np.zeros((2 * n, 2 * n))
+    a[:n, n:] = np.eye(n)
+    a[n:, :n] = -np.diag(w2)
+    a[n:, n:] = -cr
+    lam, v = sla.eig(a)
+    vinv = np.linalg.inv(v)
+    keep = lam.imag > 1e-9 * np.abs(lam)
+    real = np.abs(lam.imag) <= 1e-9 * np.abs(lam)
+    sel = keep | real
+    weight = np.where(keep[sel], 2.0, 1.0)
+    lam_k = lam[sel]
+    v_k = v[:, sel]
+    vinv_k = vinv[sel, :]
+    phi_r = phi[:nr]
+    out_w = phi_r @ v_k[:n]
+    inp = -(vinv_k[:, n:] @ phi_r.T).T
+    acc = phi_r @ v_k[n:]
+    # static: FE compliance blocks and the truncation's residual, per element
+    kinv = np.linalg.inv(mats.k)
+    n_el = lay.n_nodes - 1
+    blocks = np.empty((n_el, 4, 4))
+    resid = np.empty((n_el, 4, 4))
+    modal_flex = (phi_r / w2) @ phi_r.T
+    for e in range(n_el):
+        d = slice(2 * e, 2 * e + 4)
+        blocks[e] = kinv[d, d]
+        resid[e] = kinv[d, d] - modal_flex[d, d]
+    lengths = lay.lengths
+    phis = np.array([shear_ratio(mats.track.rail, float(L)) for L in lengths])
+    grid = np.linspace(0.0, 1.0, BUBBLE_POINTS)
+    bub_cache: dict[float, NDArray[np.float64]] = {}
+    bubble = np.empty((n_el, BUBBLE_POINTS))
+    for e, L in enumerate(lengths):
+        key = round(float(L), 12)
+        if key not in bub_cache:
+            bub_cache[key] = bubble_compliance(mats.track.rail, key, grid)
+        bubble[e] = bub_cache[key]
+    rows = np.zeros((len(cribs), lam_k.size), dtype=np.complex128)
+    for i, c in enumerate(cribs):
+        ai = np.zeros(nr)
+        for e in range(n_el):
+            if lay.x[e] >= c.x_a - 1e-9 and lay.x[e + 1] <= c.x_b + 1e-9:
+                ai[2 * e : 2 * e + 4] += deflection_integral(mats.track.rail, float(lengths[e]))
+        rows[i] = ai @ acc
+    return ModalTrack(
+        track=mats.track,
+        layout=lay,
+        cutoff=cutoff,
+        lam=np.ascontiguousarray(lam_k),
+        weight=weight,
+        out_w=np.ascontiguousarray(out_w),
+        inp=np.ascontiguousarray(inp),
+        elem_x=np.ascontiguousarray(lay.x[:-1]),
+        elem_len=np.ascontiguousarray(lengths),
+        elem_phi=phis,
+        resid=resid,
+        bubble=bubble,
+        crib_ids=tuple(c.id for c in cribs),
+        crib_lo=np.array([c.x_a for c in cribs], dtype=np.float64),
+        crib_hi=np.array([c.x_b for c in cribs], dtype=np.float64),
+        crib_rows=rows,
+        fe_compliance_blocks=blocks,
+    )
