@@ -37,6 +37,16 @@ from schemas.scenario import (
     StepRail,
     Wheel,
 )
+from schemas.track import (
+    MAX_CRIBS,
+    MAX_TRACK_LENGTH,
+    Crib,
+    Detector,
+    DiscreteFoundation,
+    RailBeam,
+    SlabFoundation,
+    TrackSupport,
+)
 
 MODELS: dict[str, type[BaseModel]] = {
     "Scenario": Scenario,
@@ -62,12 +72,17 @@ def all_json_schemas() -> dict[str, dict[str, Any]]:
 
 
 __all__ = [
+    "MAX_CRIBS",
     "MAX_SAMPLES",
+    "MAX_TRACK_LENGTH",
     "MODELS",
     "SCHEMA_VERSION",
     "CompliantFoundation",
     "CosineRail",
+    "Crib",
     "Derived",
+    "Detector",
+    "DiscreteFoundation",
     "ErrorReport",
     "FieldError",
     "FlatOutline",
@@ -75,6 +90,7 @@ __all__ = [
     "InitialState",
     "Material",
     "MessageModel",
+    "RailBeam",
     "RailSamples",
     "Result",
     "RigidFoundation",
@@ -85,9 +101,11 @@ __all__ = [
     "SampledRail",
     "Scenario",
     "Series",
+    "SlabFoundation",
     "StepRail",
     "StrictModel",
     "Summary",
+    "TrackSupport",
     "Transition",
     "Wheel",
     "all_json_schemas",

@@ -19,8 +19,11 @@ from typing import Annotated, Any
 from pydantic import BaseModel, ConfigDict, Field
 from pydantic_core import PydanticCustomError
 
-SCHEMA_VERSION = "1.0"
-"""Version of the scenario/result contract (CONTRACT.md). Same major = compatible."""
+SCHEMA_VERSION = "1.1"
+"""Version of the scenario/result contract (CONTRACT.md). Same major = compatible: this
+build reads any 1.x scenario (``Scenario.schema_version`` checks only the major).
+
+1.1: ``discrete`` and ``slab`` foundations, ``detector``, ``series.channels``."""
 
 
 class StrictModel(BaseModel):
@@ -35,6 +38,15 @@ class MessageModel(BaseModel):
 
     model_config = ConfigDict(extra="ignore", strict=True, frozen=True)
 
+
+MAX_ID_LENGTH = 96
+"""Longest passage, train, site or crib id (characters)."""
+
+KEY_CHUNK = r"^[A-Za-z0-9_.\-]{1,96}$"
+"""An identifier that is safe as one chunk of a Zenoh key (no ``/ * $ ? #``), 1 to 96 long."""
+
+Identifier = Annotated[str, Field(pattern=KEY_CHUNK)]
+"""An id (site, passage, train, crib): a Zenoh key chunk, so also a safe CSV column name."""
 
 Finite = Annotated[float, Field(allow_inf_nan=False)]
 """Any finite float."""

@@ -122,4 +122,6 @@ _UNION_TAGS = {
     "step",
     "rigid",
     "compliant",
+    "discrete",
+    "slab",
 }

@@ -30,7 +30,7 @@ site's start).
     ...     '{"passage_id": "t1-a3-r", "train_id": "t1", "axle_index": 3, "side": "right",'
     ...     ' "timestamp": 1.7e9, "speed": 44.4, "load": 39240, "mass": 400, "radius": 0.46}')
     >>> p.outline.kind, p.schema_version, p.wheel
-    ('round', '1.1', None)
+    ('round', '1.2', None)
     >>> WheelRef.parse("31-80-4751-123-4/2/left").id
     '31-80-4751-123-4/2/left'
 """
@@ -51,15 +51,26 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
-from schemas._base import Finite, MessageModel, NonNegative, Positive, StrictModel, field_error
+from schemas._base import KEY_CHUNK as KEY_CHUNK
+from schemas._base import MAX_ID_LENGTH as MAX_ID_LENGTH
+from schemas._base import (
+    Finite,
+    Identifier,
+    MessageModel,
+    NonNegative,
+    Positive,
+    StrictModel,
+    field_error,
+)
 from schemas.result import Summary, Transition
 from schemas.scenario import TWO_PI, Outline, RoundOutline, check_outline_fits
 
-MESSAGE_SCHEMA_VERSION: Final = "1.1"
+MESSAGE_SCHEMA_VERSION: Final = "1.2"
 """Version of the service's messages that this build writes; it reads any ``1.x``.
 
 1.1 (issue 16): ``WheelRef``; ``WheelPassage.wheel``/``direction``;
-``PassageResult.wheel``; ``Diagnosis.wheel``/``timestamp``; unknown fields ignored."""
+``PassageResult.wheel``; ``Diagnosis.wheel``/``timestamp``; unknown fields ignored.
+1.2: the site file's ``discrete``/``slab`` foundations and ``detector``."""
 
 MESSAGE_MAJOR: Final = 1
 """The major version this build reads."""
@@ -108,12 +119,6 @@ Version = Annotated[
 ]
 """A message's ``schema_version``: any ``1.x`` is read; kept as received."""
 
-MAX_ID_LENGTH = 96
-"""Longest passage, train or site id (characters)."""
-
-KEY_CHUNK = r"^[A-Za-z0-9_.\-]{1,96}$"
-"""An identifier that is safe as one chunk of a Zenoh key (no ``/ * $ ? #``), 1 to 96 long."""
-
 MAX_PASSAGE_SAMPLES = 150_000
 """Cap on the samples of one passage, length/speed·output_sample_rate + 1 (``service.wire.limits``)."""
 
@@ -123,11 +128,9 @@ OUTPUT_BYTES_PER_SAMPLE = 225
 MAX_PASSAGE_OUTPUT_BYTES = 48 << 20
 """Cap on the bytes one passage publishes (estimated as samples × OUTPUT_BYTES_PER_SAMPLE)."""
 
-Identifier = Annotated[str, Field(pattern=KEY_CHUNK)]
-
 
 def encoding_schema(model: type[BaseModel]) -> str:
-    """The schema name carried in the Zenoh encoding: ``railtwin.WheelPassage/1.1``."""
+    """The schema name carried in the Zenoh encoding: ``railtwin.WheelPassage/1.2``."""
     return f"railtwin.{model.__name__}/{MESSAGE_SCHEMA_VERSION}"
 
 

@@ -44,7 +44,10 @@ class Series(StrictModel):
     y_c: list[Finite] = Field(description="wheel centre displacement from static equilibrium, m")
     v_c: list[Finite] = Field(description="wheel centre velocity, m/s")
     y_ck: list[Finite] = Field(description="rigid constraint y_C^k(x_C), m")
-    y_m: list[Finite] = Field(description="foundation displacement (0 when rigid), m")
+    y_m: list[Finite] = Field(
+        description="foundation displacement (0 when rigid; on a discrete or slab track the "
+        "rail's displacement w at the wheel centre, up positive), m"
+    )
     delta: list[Finite] = Field(description="indentation δ (negative: out of contact), m")
     force: list[Finite] = Field(description="contact force F(δ), N")
     in_contact: list[bool] = Field(description="δ > 0")

@@ -29,6 +29,13 @@ from schemas._base import (
     StrictModel,
     field_error,
 )
+from schemas.track import (
+    MAX_TRACK_LENGTH,
+    Detector,
+    DiscreteFoundation,
+    SlabFoundation,
+    check_track,
+)
 
 MAX_SAMPLES = 10_000_000
 """Cap on sample_rate·duration per passage.
@@ -263,7 +270,22 @@ class CompliantFoundation(StrictModel):
     damping: NonNegative = Field(default=0.0, description="viscous damping c, N·s/m")
 
 
-Foundation = Annotated[RigidFoundation | CompliantFoundation, Field(discriminator="kind")]
+Foundation = Annotated[
+    RigidFoundation | CompliantFoundation | DiscreteFoundation | SlabFoundation,
+    Field(discriminator="kind"),
+]
+"""Rigid, one mass on a spring (MODEL.md (6.1)), or a rail on supports (MODEL.md §8,
+``schemas.track``)."""
+
+
+_NO_FOUNDATION_STATE = {
+    "rigid": "must be 0 with a rigid foundation (there is no foundation mass to move)",
+    "discrete": "must be 0 with a discrete foundation: only y_c and v_c may be nonzero (the "
+    "track starts from its static equilibrium, at rest)",
+    "slab": "must be 0 with a slab foundation: only y_c and v_c may be nonzero (the track "
+    "starts from its static equilibrium, at rest)",
+}
+"""Why ``initial.y_m``/``v_m`` must be 0, by foundation kind (all but compliant)."""
 
 
 class InitialState(StrictModel):
@@ -289,10 +311,15 @@ class Scenario(StrictModel):
     contact: ContactName = Field(description="contact law F(δ) (MODEL.md §3)")
     foundation: Foundation
     speed: Positive = Field(description="rolling speed V, m/s; x_C = V·t")
-    duration: Positive = Field(description="simulated time per passage, s")
+    duration: Positive = Field(
+        description="simulated time per passage, s; on a discrete or slab foundation the "
+        f"simulated stretch speed·duration is at most MAX_TRACK_LENGTH = {MAX_TRACK_LENGTH:g} m"
+    )
     sample_rate: Positive = Field(description="output samples per second, Hz")
     initial: InitialState | None = Field(
-        default=None, description="null: start from static equilibrium"
+        default=None,
+        description="null: start from static equilibrium; y_m and v_m only with a compliant "
+        "foundation",
     )
     passes: int = Field(default=1, ge=1, le=MAX_PASSES, description="wheels run one after another")
     curvature_stiffness: bool = Field(
@@ -308,6 +335,11 @@ class Scenario(StrictModel):
         le=1e-2,
         allow_inf_nan=False,
         description="integrator relative tolerance",
+    )
+    detector: Detector | None = Field(
+        default=None,
+        description="shear-bridge channels in the cribs (needs a discrete or slab foundation); "
+        "their signals are the result's series.channels",
     )
     schema_version: str | None = Field(
         default=None, description=f"contract version; this build reads {SCHEMA_VERSION}"
@@ -326,13 +358,13 @@ class Scenario(StrictModel):
                 f"is required with contact {self.contact!r} (the plastic range starts at "
                 "the yield force derived from it); give a value in Pa, e.g. 6.0e8",
             )
-        if self.initial is not None and isinstance(self.foundation, RigidFoundation):
+        if self.initial is not None and not isinstance(self.foundation, CompliantFoundation):
             for name in ("y_m", "v_m"):
                 if getattr(self.initial, name) != 0.0:
-                    raise field_error(
-                        f"initial.{name}",
-                        "must be 0 with a rigid foundation (there is no foundation mass to move)",
-                    )
+                    raise field_error(f"initial.{name}", _NO_FOUNDATION_STATE[self.foundation.kind])
+        check_track(
+            self.foundation, self.detector, self.speed * self.duration, "duration", "speed·duration"
+        )
         n = self.sample_rate * self.duration
         if n < 1.0:
             raise field_error(

@@ -33,6 +33,13 @@ from schemas.scenario import (
     SampledRail,
     StepRail,
 )
+from schemas.track import (
+    MAX_TRACK_LENGTH,
+    Detector,
+    DiscreteFoundation,
+    SlabFoundation,
+    check_track,
+)
 
 MAX_SITE_SAMPLES = 2_000_000
 """Cap on samples per passage (length/speed·sample_rate at 1 m/s): keeps messages sane."""
@@ -51,7 +58,10 @@ class FileRail(StrictModel):
 SiteRail = Annotated[
     FlatRail | CosineRail | StepRail | SampledRail | FileRail, Field(discriminator="kind")
 ]
-SiteFoundation = Annotated[RigidFoundation | CompliantFoundation, Field(discriminator="kind")]
+SiteFoundation = Annotated[
+    RigidFoundation | CompliantFoundation | DiscreteFoundation | SlabFoundation,
+    Field(discriminator="kind"),
+]
 
 
 class SiteConfig(StrictModel):
@@ -60,7 +70,11 @@ class SiteConfig(StrictModel):
     schema_version: Version = MESSAGE_SCHEMA_VERSION
     site_id: Identifier = Field(description="site name; the Zenoh keys are railtwin/<site_id>/...")
     description: str = ""
-    length: Positive = Field(le=1000.0, description="length of the simulated stretch, m")
+    length: Positive = Field(
+        le=1000.0,
+        description="length of the simulated stretch, m; at most MAX_TRACK_LENGTH = "
+        f"{MAX_TRACK_LENGTH:g} m on a discrete or slab foundation",
+    )
     output_sample_rate: Positive = Field(
         le=1e6, description="samples per second of the published series, Hz"
     )
@@ -71,6 +85,11 @@ class SiteConfig(StrictModel):
     material: Material
     contact: ContactName = Field(description="contact law (MODEL.md §3)")
     foundation: SiteFoundation = Field(default_factory=lambda: RigidFoundation(kind="rigid"))
+    detector: Detector | None = Field(
+        default=None,
+        description="shear-bridge channels in the cribs, within [0, length] (needs a discrete "
+        "or slab foundation); their signals are each result's channels",
+    )
     diagnosis: DiagnosisConfig = Field(
         default_factory=DiagnosisConfig,
         description="wheel-flat diagnosis: measuring chain, line speed, limits",
@@ -93,4 +112,5 @@ class SiteConfig(StrictModel):
             )
         if self.contact != "hertz" and self.material.yield_stress is None:
             raise field_error("material.yield_stress", f"is required with contact {self.contact!r}")
+        check_track(self.foundation, self.detector, self.length, "length", "length")
         return self

@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 from schemas.diagnosis import Diagnosis, FlatFinding, MeasuredPassage
 from schemas.messages import WheelPassage
 from schemas.site import SiteConfig
+from service.physics import inputs as physics_inputs
 from service.physics.measurement_error import MeasurementError
 from service.physics.site_physics import SitePhysics
 from sim_core.diagnosis.estimate import (
@@ -103,10 +104,20 @@ class Diagnoser:
             cfg.remove_length,
         )
 
+    @property
+    def diagnoses_here(self) -> bool:
+        """Whether this site's foundation is one the fit models (rigid or one mass on a
+        spring): a rail on discrete supports is not, yet (``wheel`` refuses it)."""
+        return physics_inputs.lumped(self.physics.foundation) is not None
+
     def warm_up(self) -> float:
-        """Diagnose one synthetic flat wheel (compiles the fit's kernels); returns seconds."""
+        """Diagnose one synthetic flat wheel (compiles the fit's kernels); returns seconds.
+
+        Nothing to warm (0 s) at a site the diagnosis does not model (``diagnoses_here``)."""
         from sim_core.diagnosis.synthetic import Perturbations, synthetic_measurement
 
+        if not self.diagnoses_here:
+            return 0.0
         start = time.perf_counter()
         probe = WheelPassage(
             passage_id="warm-up",
@@ -135,12 +146,22 @@ class Diagnoser:
         return time.perf_counter() - start
 
     def wheel(self, passage: WheelPassage) -> WheelOnSite:
+        """The passage's wheel on this site, as the fit models it; ``MeasurementError``
+        (field ``foundation``) at a site whose rail lies on discrete supports."""
+        foundation = physics_inputs.lumped(self.physics.foundation)
+        if foundation is None:
+            raise MeasurementError(
+                "foundation",
+                f"the site's foundation is {self.site.foundation.kind!r}: the diagnosis "
+                "fits a rigid or compliant (one-mass) foundation only, not yet a rail on "
+                "discrete supports",
+            )
         return WheelOnSite(
             passage.mass,
             passage.load,
             passage.radius,
             self.physics.contact_model(passage),
-            self.physics.foundation,
+            foundation,
             self.site.rtol,
         )
 
@@ -210,8 +231,8 @@ class Diagnoser:
         ``compare``: flats (kind, length, depth factor) whose cost on the fit's own windows
         comes back in ``FitCurves.estimate.compared`` (validation compares the truth's)."""
         start = time.perf_counter()
+        wheel = self.wheel(passage)  # first: a site the fit does not model refuses any record
         speed = self.check(passage, measured)
-        wheel = self.wheel(passage)
         t = measured.t_start + np.arange(measured.samples) / measured.sample_rate
         f = np.asarray(measured.force, dtype=np.float64)
         # a round wheel on the site's own rail, as measured: what the screen compares with

@@ -24,14 +24,18 @@ from __future__ import annotations
 import numpy as np
 
 from schemas import scenario as sc
+from schemas import track as tr
 from sim_core.contact_laws import ContactLaw, ContactModel
 from sim_core.materials import DerivedQuantities, Material, derive
 from sim_core.passage import Foundation
 from sim_core.rail import RailProfile
+from sim_core.track.spec import Crib, RailSection, Support, TrackSpec
 from sim_core.wheel import WheelOutline
 
 AnyRail = sc.FlatRail | sc.CosineRail | sc.StepRail | sc.SampledRail
-AnyFoundation = sc.RigidFoundation | sc.CompliantFoundation
+AnyFoundation = (
+    sc.RigidFoundation | sc.CompliantFoundation | tr.DiscreteFoundation | tr.SlabFoundation
+)
 
 
 def material(m: sc.Material) -> Material:
@@ -75,11 +79,55 @@ def wheel_outline(outline: sc.Outline, radius: float) -> WheelOutline:
     raise ValueError(f"unknown wheel outline {outline!r}")  # pragma: no cover - schema forbids it
 
 
-def foundation(f: AnyFoundation) -> Foundation:
-    """The contract's foundation: rigid, or a mass on a spring and dashpot."""
+def foundation(f: AnyFoundation) -> Foundation | TrackSpec:
+    """The contract's foundation: rigid, a mass on a spring and dashpot, or a rail on
+    supports (``track``). ``sim_core.passage.simulate_passage`` takes any of them."""
     if isinstance(f, sc.CompliantFoundation):
         return Foundation.compliant(f.mass, f.stiffness, f.damping)
+    if isinstance(f, (tr.DiscreteFoundation, tr.SlabFoundation)):
+        return track(f)
     return Foundation.rigid()
+
+
+def track(f: tr.DiscreteFoundation | tr.SlabFoundation) -> TrackSpec:
+    """The contract's rail on supports as ``sim_core.track.spec.TrackSpec``."""
+    r = f.rail
+    rail = RailSection(
+        r.youngs_modulus,
+        r.second_moment,
+        r.mass_per_length,
+        r.shear_modulus,
+        r.area,
+        r.shear_coefficient,
+        r.beam,
+    )
+    pad = Support(f.pad.stiffness, f.pad.damping)
+    if isinstance(f, tr.DiscreteFoundation):
+        return TrackSpec.discrete(
+            sleeper_spacing=f.sleeper_spacing,
+            first_sleeper=f.first_sleeper,
+            pad=pad,
+            sleeper_mass=f.sleeper_mass,
+            ballast=Support(f.ballast.stiffness, f.ballast.damping),
+            rail=rail,
+        )
+    return TrackSpec.slab(
+        sleeper_spacing=f.sleeper_spacing, first_sleeper=f.first_sleeper, pad=pad, rail=rail
+    )
+
+
+def lumped(f: Foundation | TrackSpec) -> Foundation | None:
+    """``f`` if it is rigid or one mass on a spring (what the diagnosis models), None for a
+    rail on supports. Code outside this module asks this rather than ``is_compliant``,
+    which a ``TrackSpec`` does not have."""
+    return f if isinstance(f, Foundation) else None
+
+
+def cribs(detector: tr.Detector | None) -> tuple[Crib, ...]:
+    """The detector's cribs as ``sim_core.track.spec.Crib``s, in order; () without one."""
+    if detector is None:
+        return ()
+    return tuple(Crib(c.id, c.x_a, c.x_b) for c in detector.cribs)
 
 
 def contact_model(
