@@ -70,7 +70,8 @@ MESSAGE_SCHEMA_VERSION: Final = "1.2"
 
 1.1 (issue 16): ``WheelRef``; ``WheelPassage.wheel``/``direction``;
 ``PassageResult.wheel``; ``Diagnosis.wheel``/``timestamp``; unknown fields ignored.
-1.2: the site file's ``discrete``/``slab`` foundations and ``detector``."""
+1.2: the site file's ``discrete``/``slab`` foundations and ``detector``;
+``PassageResult.channels``."""
 
 MESSAGE_MAJOR: Final = 1
 """The major version this build reads."""
@@ -370,6 +371,11 @@ class PassageResult(VersionedMessage):
     indentation: list[Finite] = Field(description="indentation δ, m (negative: out of contact)")
     y_c: list[Finite] = Field(description="wheel centre displacement from static equilibrium, m")
     y_ck: list[Finite] = Field(description="rigid constraint y_C^k(x_C), m")
+    channels: dict[str, list[Finite]] | None = Field(
+        default=None,
+        description="crib id -> the crib's channel Q(x_a) - Q(x_b), N, at each x (the rail's "
+        "own shear difference, before any measuring chain); only at a site with a detector",
+    )
     transitions: list[Transition] = Field(description="losses/returns of contact, yield/unyield")
     summary: Summary
     rail_revision: int = Field(
@@ -384,6 +390,9 @@ class PassageResult(VersionedMessage):
         for name in ("force", "indentation", "y_c", "y_ck"):
             if len(getattr(self, name)) != n:
                 raise field_error(name, f"has {len(getattr(self, name))} samples but x has {n}")
+        for crib, values in (self.channels or {}).items():
+            if len(values) != n:
+                raise field_error(f"channels.{crib}", f"has {len(values)} samples but x has {n}")
         return self
 
 

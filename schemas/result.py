@@ -3,7 +3,8 @@
 ``series`` holds the samples of the last pass; ``passes_summary`` holds one
 summary per pass, in order (its last entry equals ``summary``). Fields beyond
 the contract's (allowed: the models may add, never rename): ``series.v_m``,
-``transitions[].x``, ``stats``, ``schema_version``.
+``transitions[].x``, ``stats``, ``schema_version``. ``series.channels`` (contract 1.1) is
+there exactly when the scenario has a detector: one channel a crib, keyed by its id.
 """
 
 from __future__ import annotations
@@ -52,6 +53,11 @@ class Series(StrictModel):
     force: list[Finite] = Field(description="contact force F(δ), N")
     in_contact: list[bool] = Field(description="δ > 0")
     v_m: list[Finite] | None = Field(default=None, description="foundation velocity, m/s")
+    channels: dict[str, list[Finite]] | None = Field(
+        default=None,
+        description="crib id -> the crib's channel Q(x_a) - Q(x_b), N, at sample_rate (the "
+        "rail's own shear difference, before any measuring chain); only with a detector",
+    )
 
     @model_validator(mode="after")
     def _same_length(self) -> Series:
@@ -60,6 +66,9 @@ class Series(StrictModel):
             values = getattr(self, name)
             if values is not None and len(values) != n:
                 raise field_error(name, f"has {len(values)} samples but t has {n}")
+        for crib, values in (self.channels or {}).items():
+            if len(values) != n:
+                raise field_error(f"channels.{crib}", f"has {len(values)} samples but t has {n}")
         return self
 
 
@@ -124,3 +133,15 @@ class Result(StrictModel):
     )
     passes_summary: list[Summary] = Field(description="one summary per pass, in order")
     stats: RunStats | None = None
+
+    @model_validator(mode="after")
+    def _channels_of_the_detector(self) -> Result:
+        detector = self.scenario.detector
+        want = [] if detector is None else [c.id for c in detector.cribs]
+        have = list(self.series.channels or {})
+        if sorted(have) != sorted(want):
+            raise field_error(
+                "series.channels",
+                f"has channels {have} but the scenario's detector has cribs {want}",
+            )
+        return self

@@ -29,7 +29,7 @@ if TYPE_CHECKING:  # sim_core is imported when a scenario runs: ``railtwin --hel
     from sim_core.contact_laws import ContactModel
     from sim_core.materials import DerivedQuantities
     from sim_core.multipass import MultiPassOutput
-    from sim_core.passage import PassageSpec
+    from sim_core.passage import PassageOutput, PassageSpec
     from sim_core.rail import RailProfile
     from sim_core.summary import PassageSummary
 
@@ -56,6 +56,7 @@ def build_spec(scenario: sc.Scenario, contact: ContactModel) -> PassageSpec:
         foundation=physics_inputs.foundation(scenario.foundation),
         initial=initial,
         rtol=scenario.rtol,
+        cribs=physics_inputs.cribs(scenario.detector),
     )
 
 
@@ -169,6 +170,7 @@ def package_result(
         force=_floats(last.force),
         in_contact=np.asarray(last.in_contact, dtype=bool).ravel().tolist(),
         v_m=_floats(last.v_m),
+        channels=_channels(scenario, last),
     )
     transitions = [  # sim_core's TransitionKind is the contract's (tests/test_transition_kinds.py)
         res.Transition(t=float(tr.t), kind=tr.kind, x=float(tr.x)) for tr in last.transitions
@@ -200,6 +202,16 @@ def package_result(
         passes_summary=summaries,
         stats=stats,
     )
+
+
+def _channels(scenario: sc.Scenario, last: PassageOutput) -> dict[str, list[float]] | None:
+    """The detector's channels, crib by crib in the detector's order; None without one."""
+    if scenario.detector is None:
+        return None
+    missing = [c.id for c in scenario.detector.cribs if c.id not in last.channels]
+    if missing:
+        raise RuntimeError(f"sim_core returned no channel for the cribs {missing}")
+    return {c.id: _floats(last.channels[c.id]) for c in scenario.detector.cribs}
 
 
 def _summary(s: PassageSummary) -> res.Summary:

@@ -51,6 +51,7 @@ class SitePhysics:
         self.site = site
         self.material = physics_inputs.material(site.material)
         self.foundation = physics_inputs.foundation(site.foundation)
+        self.cribs = physics_inputs.cribs(site.detector)
         self.base_rail = physics_inputs.rail_profile(site.rail)
         # the rail now (base + dents), swapped as a whole so that readers on other threads
         # see a consistent profile and revision
@@ -78,7 +79,8 @@ class SitePhysics:
         return model
 
     def _spec(self, passage: WheelPassage, length: float) -> PassageSpec:
-        """The passage over ``length`` m of the site, from static equilibrium."""
+        """The passage over ``length`` m of the site, from static equilibrium, with the
+        detector's cribs that lie within it."""
         return PassageSpec(
             mass=passage.mass,
             load=passage.load,
@@ -89,6 +91,7 @@ class SitePhysics:
             foundation=self.foundation,
             initial=None,
             rtol=self.site.rtol,
+            cribs=tuple(c for c in self.cribs if c.x_b <= length),
         )
 
     def warm_up(self) -> float:
@@ -152,6 +155,7 @@ class SitePhysics:
             indentation=out.delta.tolist(),
             y_c=out.y_c.tolist(),
             y_ck=out.y_ck.tolist(),
+            channels={c.id: out.channels[c.id].tolist() for c in self.cribs} or None,
             transitions=[Transition(t=tr.t, kind=tr.kind, x=tr.x) for tr in out.transitions],
             summary=s,
             rail_revision=revision,

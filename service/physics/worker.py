@@ -123,7 +123,8 @@ def _child_main(
                         series_json(result, "force", 0, n, 0, 1),
                         series_json(result, "indentation", 0, n, 0, 1),
                     )
-                    result = result.model_copy(update={key: [] for key in RESULT_ARRAYS})
+                    light: dict[str, object] = {key: [] for key in RESULT_ARRAYS}
+                    result = result.model_copy(update={**light, "channels": None})
                 conn.send(("ok", result, data, dented, series))
             elif op == "diagnose":
                 if diagnoser is None:
