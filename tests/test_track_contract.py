@@ -7,6 +7,7 @@ channels of a result; the conversion to ``sim_core``.
 from __future__ import annotations
 
 import copy
+import json
 import re
 from collections.abc import Callable
 from typing import Any
@@ -22,6 +23,7 @@ from schemas.site import SiteConfig
 from schemas.track import DiscreteFoundation
 from service.physics import inputs as physics_inputs
 from sim_core.track.spec import Crib, TrackError, TrackSpec, check_cribs
+from tests.conftest import ROOT
 
 DISCRETE: dict[str, Any] = {
     "kind": "discrete",
@@ -433,6 +435,30 @@ def test_passage_result_channels_have_one_sample_per_x() -> None:
     assert PassageResult.model_validate(base).channels is None  # a 1.1 producer's result
     with pytest.raises(ValidationError, match=r"channels\.c1"):
         PassageResult.model_validate(base | {"channels": {"c1": [1.0]}})
+
+
+# --- CONTRACT.md ----------------------------------------------------------------------------
+
+
+def _section_blocks() -> list[dict[str, Any]]:
+    text = (ROOT / "docs" / "CONTRACT.md").read_text(encoding="utf-8")
+    section = text.split("## A rail on discrete supports, and a detector", 1)[1]
+    blocks = re.findall(r"```json\n(.*?)```", section, re.S)
+    return [json.loads("{" + b + "}") for b in blocks[:2]]
+
+
+def test_the_contracts_track_and_detector_examples_validate(
+    contract_example: dict[str, Any],
+) -> None:
+    foundation, detector = _section_blocks()
+    s = Scenario.model_validate(contract_example | foundation)
+    assert s.foundation.kind == "discrete"
+    # the detector's cribs lie between sleepers at 0.1 + 0.6·i m (the example track's
+    # first_sleeper = 0.3 puts sleepers at 1.5 and 2.1 m, inside them)
+    shifted = edited(foundation, "foundation.first_sleeper", 0.1)
+    assert Scenario.model_validate(contract_example | shifted | detector).detector is not None
+    report = report_of(contract_example | foundation | detector)
+    assert [e.path for e in report.errors] == ["detector.cribs[0]"]
 
 
 # --- to sim_core ----------------------------------------------------------------------------
