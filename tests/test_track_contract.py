@@ -1,7 +1,8 @@
 """The contract of a rail on discrete supports and a detector (CONTRACT.md, MODEL.md §8).
 
-What is accepted and refused, with the field named; the limits at their edges; the
-channels of a result; the conversion to ``sim_core``.
+What is accepted and refused, with the field named, through the models and through
+``railtwin simulate``; the limits at their edges; the channels of a result; the
+conversion to ``sim_core``.
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ import copy
 import json
 import re
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -24,6 +26,7 @@ from schemas.track import DiscreteFoundation
 from service.physics import inputs as physics_inputs
 from sim_core.track.spec import Crib, TrackError, TrackSpec, check_cribs
 from tests.conftest import ROOT
+from tests.test_cli import run_main
 
 DISCRETE: dict[str, Any] = {
     "kind": "discrete",
@@ -277,6 +280,39 @@ def test_bad_track_input_names_the_field(
     report = report_of(edit(track_scenario))
     assert [e.path for e in report.errors] == [path], report.to_text()
     assert fragment in report.errors[0].message, report.to_text()
+
+
+@pytest.mark.parametrize(
+    ("edit", "path", "fragment"),
+    [case[1:] for case in BAD_SCENARIOS],
+    ids=[case[0] for case in BAD_SCENARIOS],
+)
+def test_simulate_refuses_bad_track_input_on_one_line(
+    track_scenario: dict[str, Any],
+    edit: Callable[[dict[str, Any]], dict[str, Any]],
+    path: str,
+    fragment: str,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(edit(track_scenario)))
+    code, out, err = run_main(["simulate", str(bad), "--out", str(tmp_path / "r.json")], capsys)
+    assert code == 2 and out == ""
+    assert "1 invalid field" in err, err
+    naming = [line for line in err.splitlines() if line.strip().startswith(f"{path}:")]
+    assert len(naming) == 1 and fragment in naming[0], err
+    assert not (tmp_path / "r.json").exists()
+
+
+def test_simulate_refuses_a_bad_crib_via_subprocess(
+    track_scenario: dict[str, Any], tmp_path: Path, cli: Callable[..., Any]
+) -> None:
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps(edited(track_scenario, "detector.cribs[1].x_b", 1.95)))
+    proc = cli("simulate", str(bad))
+    assert proc.returncode == 2 and proc.stdout == ""
+    assert [line for line in proc.stderr.splitlines() if "detector.cribs[1].x_b:" in line]
 
 
 # --- the limits at their edges --------------------------------------------------------------
