@@ -19,7 +19,7 @@ L³/3EI + L/κGA, exact for the interdependent element):
     >>> k = stiffness_matrix(r, 1.0)[2:, 2:]
     >>> tip = np.linalg.solve(k, [1.0, 0.0])[0]
     >>> exact = 1 / (3 * r.bending_stiffness) + 1 / r.shear_stiffness
-    >>> abs(tip / exact - 1) < 1e-12
+    >>> bool(abs(tip / exact - 1) < 1e-12)
     True
 """
 

@@ -45,6 +45,7 @@ from sim_core.track.beam import (
 )
 from sim_core.track.layout import ABSORBER_BAYS, ELEMENTS_PER_BAY, MARGIN_BAYS, TrackLayout, layout
 from sim_core.track.spec import Crib, TrackSpec
+from sim_core.track.stepper import Modes
 
 CUTOFF = 4000.0
 """Highest undamped track frequency kept as a mode, Hz (convergence: docs/MODEL.md §8)."""
@@ -56,7 +57,7 @@ BUBBLE_POINTS = 33
 """Samples of an element's bubble compliance over ξ in [0, 1] (interpolated linearly)."""
 
 
-class TrackTooLarge(ValueError):
+class TrackTooLargeError(ValueError):
     """The finite track would need more modes than ``MAX_MODES``."""
 
 
@@ -85,6 +86,33 @@ class ModalTrack:
     @property
     def n_modes(self) -> int:
         return int(self.lam.size)
+
+    @functools.cached_property
+    def arrays(self) -> Modes:
+        """The compiled stepper's view: real and imaginary parts apart, weights folded in."""
+
+        def c(a: NDArray[np.float64]) -> NDArray[np.float64]:
+            return np.ascontiguousarray(a, dtype=np.float64)
+
+        out = self.out_w * self.weight
+        rows = self.crib_rows * self.weight
+        return Modes(
+            c(self.lam.real),
+            c(self.lam.imag),
+            c(out.real),
+            c(out.imag),
+            c(self.inp.real),
+            c(self.inp.imag),
+            c(self.elem_x),
+            c(self.elem_len),
+            c(self.elem_phi),
+            c(self.resid),
+            c(self.bubble),
+            c(self.crib_lo),
+            c(self.crib_hi),
+            c(rows.real.reshape(len(self.crib_ids), -1)),
+            c(rows.imag.reshape(len(self.crib_ids), -1)),
+        )
 
     def element_of(self, x: float) -> int:
         return int(
@@ -177,7 +205,7 @@ def _modal(mats: TrackMatrices, cutoff: float, cribs: tuple[Crib, ...]) -> Modal
     w2, phi = sla.eigh(mats.k, mats.m, subset_by_value=(-np.inf, w2max), driver="gvx")
     n = w2.size
     if n > MAX_MODES:
-        raise TrackTooLarge(
+        raise TrackTooLargeError(
             f"the track model needs {n} modes below {cutoff:g} Hz, more than {MAX_MODES}: "
             "shorten the simulated stretch"
         )

@@ -3,19 +3,25 @@
 Between two step ends t and t + τ the contact force F is taken linear in time.
 Then every step is exact but for that one assumption (second order in τ):
 
-- each track mode: ζ(t + τ) = e^{λτ}·ζ + τ·φ₁(λτ)·u_a + τ·φ₂(λτ)·(u_b − u_a), with u = g(x)·F
-  the mode's load and φ₁(z) = (eᶻ − 1)/z, φ₂(z) = (eᶻ − 1 − z)/z²;
+- each track mode: ζ(t + τ) = e^{λτ}·ζ + τ·(φ₁ − φ₂)(λτ)·u_a + τ·φ₂(λτ)·u_b, with u = g(x)·F
+  the mode's load, φ₁(z) = (eᶻ − 1)/z and φ₂(z) = (eᶻ − 1 − z)/z²;
 - the wheel: y(t + τ) = y + τ·v − P·τ²/2m + τ²·(F_a/6 + F_b/3)/m;
-- the contact: δ_b = δ* − κ·F_b, linear in the unknown end force F_b, so
+- the contact: δ_b = δ* − κ·F_b is linear in the unknown end force F_b, so
   F_b = F(δ* − κ·F_b) is one monotone scalar equation, solved by safeguarded
-  Newton (the force of any law of MODEL.md §3 on its loading branch).
+  Newton (the loading branch of any law of MODEL.md §3).
 
-Every mode is advanced exactly, whatever its frequency, so the step is set by
-the contact and the rail's features, not by the stiffest mode. Losses and
-returns of contact (δ through 0) and the plastic range's entry and exit
-(δ through δ_Y ± the switch width) are located inside the step by a root finder
-on the step length (Illinois false position), each a restart point; the step
-grid also stops on every sample and every kink of the constraint.
+Every mode is advanced exactly whatever its frequency, so the step is set by the
+contact and the rail's features, not by the stiffest mode. A loss of contact
+(δ* falling through 0 with the force released) and a return (the free δ rising
+through 0) are located inside the step by Illinois false position on the step
+length; the step grid also stops on every sample and every kink of the
+constraint. The plastic range's entry and exit are reported where δ crosses
+δ_Y ± the switch width, interpolated on the step (the force law is one monotone
+function, so the step needs no restart there).
+
+Complex numbers are kept as separate real and imaginary arrays, and the
+weights (2 for a conjugate pair) are folded into the output rows, so that the
+loops over the modes are plain float arithmetic the compiler vectorises.
 
 Worked example: ``sim_core.track.passage.simulate_on_track`` is the only caller.
 """
@@ -23,6 +29,7 @@ Worked example: ``sim_core.track.passage.simulate_on_track`` is the only caller.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -35,23 +42,67 @@ from sim_core.contact_laws import HERTZ, contact_force, mode_stiffness
 C_T, C_X, C_YC, C_VC, C_YCK, C_W, C_DELTA, C_FORCE, C_CONTACT, C_VW = range(10)
 N_COLS = 10
 # extrema
-E_PEAK_FORCE, E_MIN_FORCE, E_PEAK_DELTA, E_T_FLIGHT, E_STEPS, E_EVENTS = range(6)
+E_PEAK_FORCE, E_MIN_FORCE, E_PEAK_DELTA, E_T_FLIGHT, E_STEPS = range(5)
+N_EXTREMA = 5
 
 EV_LOSS, EV_CONTACT, EV_YIELD, EV_UNYIELD = 0, 1, 2, 3
 SERIES_LIMIT = 1e-3
+"""Below this |λτ| the φ functions are summed as series (their closed forms cancel)."""
+
+_fast = numba.njit(cache=True, fastmath=True)
 
 
-@numba.njit(cache=True)
-def _coefficients(
-    lam: NDArray[np.complex128],
-    tau: float,
-    e: NDArray[np.complex128],
-    p1m2: NDArray[np.complex128],
-    p2: NDArray[np.complex128],
-) -> None:
-    """e^{λτ}, τ(φ₁ − φ₂) and τ·φ₂ of every mode, by series where λτ is small."""
-    for j in range(lam.size):
-        z = lam[j] * tau
+class Modes(NamedTuple):
+    """The modal track as the compiled stepper reads it (``ModalTrack.arrays``)."""
+
+    lam_r: NDArray[np.float64]
+    lam_i: NDArray[np.float64]
+    out_r: NDArray[np.float64]
+    """(rail dofs, modes): displacement rows, weights folded in."""
+    out_i: NDArray[np.float64]
+    inp_r: NDArray[np.float64]
+    """(rail dofs, modes): the load per unit downward force at a dof."""
+    inp_i: NDArray[np.float64]
+    ex: NDArray[np.float64]
+    el: NDArray[np.float64]
+    ephi: NDArray[np.float64]
+    resid: NDArray[np.float64]
+    bubble: NDArray[np.float64]
+    crib_lo: NDArray[np.float64]
+    crib_hi: NDArray[np.float64]
+    crib_r: NDArray[np.float64]
+    """(cribs, modes): the rail's inertia between the gauges per ζ̇, weights folded in."""
+    crib_i: NDArray[np.float64]
+
+
+class Wheel(NamedTuple):
+    """The wheel, its contact law and its speed."""
+
+    law: int
+    c: float
+    f_y: float
+    d_y: float
+    theta: float
+    hyst: float
+    mass: float
+    load: float
+    speed: float
+
+
+class Table(NamedTuple):
+    x: NDArray[np.float64]
+    y: NDArray[np.float64]
+    sl: NDArray[np.float64]
+    sr: NDArray[np.float64]
+    cx: NDArray[np.float64]
+    period: float
+
+
+@_fast
+def coefficients(md: Modes, tau: float, co: NDArray[np.float64]) -> None:
+    """Rows of ``co``: Re, Im of e^{λτ}, τ(φ₁ − φ₂)(λτ) and τ·φ₂(λτ), by series where λτ is small."""
+    for j in range(md.lam_r.size):
+        z = complex(md.lam_r[j] * tau, md.lam_i[j] * tau)
         ez = np.exp(z)
         if abs(z) < SERIES_LIMIT:
             f1 = 1.0 + z * (0.5 + z * (1.0 / 6.0 + z * (1.0 / 24.0 + z / 120.0)))
@@ -59,13 +110,18 @@ def _coefficients(
         else:
             f1 = (ez - 1.0) / z
             f2 = (ez - 1.0 - z) / (z * z)
-        e[j] = ez
-        p1m2[j] = tau * (f1 - f2)
-        p2[j] = tau * f2
+        a = tau * (f1 - f2)
+        b = tau * f2
+        co[0, j] = ez.real
+        co[1, j] = ez.imag
+        co[2, j] = a.real
+        co[3, j] = a.imag
+        co[4, j] = b.real
+        co[5, j] = b.imag
 
 
 @numba.njit(cache=True, inline="always")
-def _element(x: float, ex: NDArray[np.float64], hint: int) -> int:
+def element_at(x: float, ex: NDArray[np.float64], hint: int) -> int:
     n = ex.size
     i = min(max(hint, 0), n - 1)
     while i > 0 and x < ex[i]:
@@ -75,23 +131,12 @@ def _element(x: float, ex: NDArray[np.float64], hint: int) -> int:
     return i
 
 
-@numba.njit(cache=True)
-def _shapes(
-    x: float,
-    e: int,
-    ex: NDArray[np.float64],
-    el: NDArray[np.float64],
-    ephi: NDArray[np.float64],
-    n: NDArray[np.float64],
-) -> float:
+@numba.njit(cache=True, inline="always")
+def shapes(x: float, e: int, md: Modes, n: NDArray[np.float64]) -> float:
     """The element's deflection shape functions at x into ``n``; returns ξ."""
-    L = el[e]
-    xi = (x - ex[e]) / L
-    if xi < 0.0:
-        xi = 0.0
-    elif xi > 1.0:
-        xi = 1.0
-    phi = ephi[e]
+    L = md.el[e]
+    xi = min(max((x - md.ex[e]) / L, 0.0), 1.0)
+    phi = md.ephi[e]
     c = 1.0 / (1.0 + phi)
     x2 = xi * xi
     x3 = x2 * xi
@@ -102,63 +147,142 @@ def _shapes(
     return xi
 
 
-@numba.njit(cache=True)
-def _residual(
-    e: int,
-    xi: float,
-    n: NDArray[np.float64],
-    resid: NDArray[np.float64],
-    bubble: NDArray[np.float64],
-) -> float:
+@numba.njit(cache=True, inline="always")
+def residual(e: int, xi: float, n: NDArray[np.float64], md: Modes) -> float:
+    """The static compliance the modes leave out at the load point (truncation and bubble)."""
     r = 0.0
     for a in range(4):
         s = 0.0
         for b in range(4):
-            s += resid[e, a, b] * n[b]
+            s += md.resid[e, a, b] * n[b]
         r += n[a] * s
-    nb = bubble.shape[1]
+    nb = md.bubble.shape[1]
     p = xi * (nb - 1)
     k = min(int(p), nb - 2)
     f = p - k
-    return r + (1.0 - f) * bubble[e, k] + f * bubble[e, k + 1]
+    return r + (1.0 - f) * md.bubble[e, k] + f * md.bubble[e, k + 1]
 
 
-@numba.njit(cache=True)
-def _interp_modes(
-    e: int, n: NDArray[np.float64], coef: NDArray[np.complex128], out: NDArray[np.complex128]
+@_fast
+def load_rows(
+    e: int, n: NDArray[np.float64], md: Modes, gr: NDArray[np.float64], gi: NDArray[np.float64]
 ) -> None:
+    """g(x) of every mode: the element's input rows through the shape functions."""
     d = 2 * e
-    m = out.size
-    for j in range(m):
-        out[j] = (
-            n[0] * coef[d, j]
-            + n[1] * coef[d + 1, j]
-            + n[2] * coef[d + 2, j]
-            + n[3] * coef[d + 3, j]
-        )
+    r0, r1, r2, r3 = md.inp_r[d], md.inp_r[d + 1], md.inp_r[d + 2], md.inp_r[d + 3]
+    i0, i1, i2, i3 = md.inp_i[d], md.inp_i[d + 1], md.inp_i[d + 2], md.inp_i[d + 3]
+    n0, n1, n2, n3 = n[0], n[1], n[2], n[3]
+    for j in range(gr.size):
+        gr[j] = n0 * r0[j] + n1 * r1[j] + n2 * r2[j] + n3 * r3[j]
+        gi[j] = n0 * i0[j] + n1 * i1[j] + n2 * i2[j] + n3 * i3[j]
+
+
+@_fast
+def deflection(
+    e: int, n: NDArray[np.float64], md: Modes, zr: NDArray[np.float64], zi: NDArray[np.float64]
+) -> float:
+    """Σ weight·Re(h_j(x)·ζ_j): the modes' rail deflection at x."""
+    d = 2 * e
+    r0, r1, r2, r3 = md.out_r[d], md.out_r[d + 1], md.out_r[d + 2], md.out_r[d + 3]
+    i0, i1, i2, i3 = md.out_i[d], md.out_i[d + 1], md.out_i[d + 2], md.out_i[d + 3]
+    n0, n1, n2, n3 = n[0], n[1], n[2], n[3]
+    w = 0.0
+    for j in range(zr.size):
+        hr = n0 * r0[j] + n1 * r1[j] + n2 * r2[j] + n3 * r3[j]
+        hi = n0 * i0[j] + n1 * i1[j] + n2 * i2[j] + n3 * i3[j]
+        w += hr * zr[j] - hi * zi[j]
+    return w
+
+
+@_fast
+def predict(
+    e: int,
+    n: NDArray[np.float64],
+    md: Modes,
+    co: NDArray[np.float64],
+    zr: NDArray[np.float64],
+    zi: NDArray[np.float64],
+    ur: NDArray[np.float64],
+    ui: NDArray[np.float64],
+    pr: NDArray[np.float64],
+    pi: NDArray[np.float64],
+    gr: NDArray[np.float64],
+    gi: NDArray[np.float64],
+    qr: NDArray[np.float64],
+    qi: NDArray[np.float64],
+) -> tuple[float, float]:
+    """The modes at the step's end without its end force, into (pr, pi); g at the end into
+    (gr, gi) and τφ₂·g into (qr, qi); returns (their deflection at x, its compliance B)."""
+    d = 2 * e
+    r0, r1, r2, r3 = md.out_r[d], md.out_r[d + 1], md.out_r[d + 2], md.out_r[d + 3]
+    i0, i1, i2, i3 = md.out_i[d], md.out_i[d + 1], md.out_i[d + 2], md.out_i[d + 3]
+    s0, s1, s2, s3 = md.inp_r[d], md.inp_r[d + 1], md.inp_r[d + 2], md.inp_r[d + 3]
+    t0, t1, t2, t3 = md.inp_i[d], md.inp_i[d + 1], md.inp_i[d + 2], md.inp_i[d + 3]
+    n0, n1, n2, n3 = n[0], n[1], n[2], n[3]
+    er, ei, ar, ai, br, bi = co[0], co[1], co[2], co[3], co[4], co[5]
+    w = 0.0
+    b = 0.0
+    for j in range(zr.size):
+        p_r = er[j] * zr[j] - ei[j] * zi[j] + ar[j] * ur[j] - ai[j] * ui[j]
+        p_i = er[j] * zi[j] + ei[j] * zr[j] + ar[j] * ui[j] + ai[j] * ur[j]
+        pr[j] = p_r
+        pi[j] = p_i
+        hr = n0 * r0[j] + n1 * r1[j] + n2 * r2[j] + n3 * r3[j]
+        hi = n0 * i0[j] + n1 * i1[j] + n2 * i2[j] + n3 * i3[j]
+        g_r = n0 * s0[j] + n1 * s1[j] + n2 * s2[j] + n3 * s3[j]
+        g_i = n0 * t0[j] + n1 * t1[j] + n2 * t2[j] + n3 * t3[j]
+        gr[j] = g_r
+        gi[j] = g_i
+        q_r = br[j] * g_r - bi[j] * g_i
+        q_i = br[j] * g_i + bi[j] * g_r
+        qr[j] = q_r
+        qi[j] = q_i
+        w += hr * p_r - hi * p_i
+        b += hr * q_r - hi * q_i
+    return w, b
+
+
+@_fast
+def commit(
+    f: float,
+    zr: NDArray[np.float64],
+    zi: NDArray[np.float64],
+    ur: NDArray[np.float64],
+    ui: NDArray[np.float64],
+    pr: NDArray[np.float64],
+    pi: NDArray[np.float64],
+    gr: NDArray[np.float64],
+    gi: NDArray[np.float64],
+    qr: NDArray[np.float64],
+    qi: NDArray[np.float64],
+) -> None:
+    """ζ = predicted + τφ₂·g·F; the mode loads u = g·F for the next step."""
+    for j in range(zr.size):
+        zr[j] = pr[j] + qr[j] * f
+        zi[j] = pi[j] + qi[j] * f
+        ur[j] = gr[j] * f
+        ui[j] = gi[j] * f
 
 
 @numba.njit(cache=True)
-def _solve_force(
-    dstar: float, kappa: float, law: int, c: float, f_y: float, d_y: float, theta: float
-) -> float:
+def solve_force(dstar: float, kappa: float, wh: Wheel) -> float:
     """F ≥ 0 with F = F_law(δ* − κF): the root of an increasing function on [0, F_law(δ*)]."""
     if dstar <= 0.0:
         return 0.0
-    hi = contact_force(dstar, law, c, f_y, d_y, theta)
+    hi = contact_force(dstar, wh.law, wh.c, wh.f_y, wh.d_y, wh.theta)
     lo = 0.0
-    # start from the linearised guess
     f = hi
-    for _ in range(100):
+    for _ in range(200):
         d = dstar - kappa * f
-        g = f - contact_force(d, law, c, f_y, d_y, theta)
+        g = f - contact_force(d, wh.law, wh.c, wh.f_y, wh.d_y, wh.theta)
         if g > 0.0:
             hi = f
         else:
             lo = f
-        k = mode_stiffness(d, law != HERTZ and d > d_y, law, c, f_y, d_y, theta)
-        dg = 1.0 + kappa * k
-        fn = f - g / dg
+        k = mode_stiffness(
+            d, wh.law != HERTZ and d > wh.d_y, wh.law, wh.c, wh.f_y, wh.d_y, wh.theta
+        )
+        fn = f - g / (1.0 + kappa * k)
         if not (lo < fn < hi):
             fn = 0.5 * (lo + hi)
         if abs(fn - f) <= 1e-13 * max(abs(f), 1.0) or hi - lo <= 1e-13 * max(hi, 1.0):
@@ -169,87 +293,58 @@ def _solve_force(
 
 @numba.njit(cache=True)
 def run(
-    # the track
-    lam: NDArray[np.complex128],
-    weight: NDArray[np.float64],
-    out_w: NDArray[np.complex128],
-    inp: NDArray[np.complex128],
-    ex: NDArray[np.float64],
-    el: NDArray[np.float64],
-    ephi: NDArray[np.float64],
-    resid: NDArray[np.float64],
-    bubble: NDArray[np.float64],
-    crib_lo: NDArray[np.float64],
-    crib_hi: NDArray[np.float64],
-    crib_rows: NDArray[np.complex128],
-    # the constraint table
-    tx: NDArray[np.float64],
-    ty: NDArray[np.float64],
-    tsl: NDArray[np.float64],
-    tsr: NDArray[np.float64],
-    tcx: NDArray[np.float64],
-    tperiod: float,
-    # the wheel and contact
-    law: int,
-    cc: float,
-    f_y: float,
-    d_y: float,
-    theta: float,
-    hyst: float,
-    mass: float,
-    load: float,
-    speed: float,
-    # time
+    md: Modes,
+    tab: Table,
+    wh: Wheel,
     t0: float,
-    t1: float,
     h_max: float,
     stops: NDArray[np.float64],
     sample_t: NDArray[np.float64],
-    # initial state
-    zeta: NDArray[np.complex128],
+    zr: NDArray[np.float64],
+    zi: NDArray[np.float64],
     y0: float,
     v0: float,
     f0: float,
     track_dents: bool,
-    # outputs
     samples: NDArray[np.float64],
     channels: NDArray[np.float64],
     transitions: NDArray[np.float64],
     dents: NDArray[np.float64],
     extrema: NDArray[np.float64],
 ) -> tuple[int, int]:
-    """Advance from t0 to t1; fill the outputs; return (transitions, dent records) written."""
-    m = lam.size
-    nc = crib_lo.size
-    e_n = np.empty(m, np.complex128)
-    a_n = np.empty(m, np.complex128)
-    b_n = np.empty(m, np.complex128)
-    e_t = np.empty(m, np.complex128)
-    a_t = np.empty(m, np.complex128)
-    b_t = np.empty(m, np.complex128)
-    hb = np.empty(m, np.complex128)
-    gb = np.empty(m, np.complex128)
-    ua = np.empty(m, np.complex128)
-    zp = np.empty(m, np.complex128)
+    """Advance from t0 through every sample time; fill the outputs; return (transitions, dents) written."""
+    m = md.lam_r.size
+    nc = md.crib_lo.size
+    co_n = np.empty((6, m))
+    co_t = np.empty((6, m))
+    ur = np.empty(m)
+    ui = np.empty(m)
+    pr = np.empty(m)
+    pi = np.empty(m)
+    gr = np.empty(m)
+    gi = np.empty(m)
+    qr = np.empty(m)
+    qi = np.empty(m)
     nsh = np.empty(4)
     tau_n = -1.0
-    hint_e = 0
-    hint_t = 0
-
-    y = y0
+    he = 0
+    ht = 0
+    plastic_law = wh.law != HERTZ
     v = v0
+    y = y0
     fa = f0
     t = t0
-    # the load on the modes at the start
-    xe = speed * t0
-    hint_e = _element(xe, ex, hint_e)
-    _shapes(xe, hint_e, ex, el, ephi, nsh)
-    _interp_modes(hint_e, nsh, inp, gb)
+    x = wh.speed * t0
+    he = element_at(x, md.ex, he)
+    xi = shapes(x, he, md, nsh)
+    load_rows(he, nsh, md, gr, gi)
     for j in range(m):
-        ua[j] = gb[j] * fa
+        ur[j] = gr[j] * fa
+        ui[j] = gi[j] * fa
     contact = fa > 0.0
-    ck0, _, hint_t = table_eval(tx, ty, tsl, tsr, tperiod, xe, hint_t)
-    plastic = law != HERTZ and False
+    ck, _, ht = table_eval(tab.x, tab.y, tab.sl, tab.sr, tab.period, x, ht)
+    delta_a = -y + ck + deflection(he, nsh, md, zr, zi) - residual(he, xi, nsh, md) * fa
+    plastic = plastic_law and contact and delta_a > wh.d_y
     n_tr = 0
     n_dent = 0
     i_stop = 0
@@ -258,252 +353,185 @@ def run(
     n_steps = 0
     f_prev2 = -1.0
     f_prev1 = -1.0
-    t_prev1 = t0
     peak = fa
-    least = fa if contact else 0.0
-    peak_d = 0.0
+    least = fa if contact else np.inf
+    peak_d = delta_a if contact else 0.0
     t_flight = 0.0
-    delta_a = 0.0
-    # the indentation at the start
-    if contact:
-        _shapes(xe, hint_e, ex, el, ephi, nsh)
-        _interp_modes(hint_e, nsh, out_w, hb)
-        w = 0.0
-        for j in range(m):
-            w += weight[j] * (hb[j] * zeta[j]).real
-        delta_a = (
-            -y
-            + ck0
-            + w
-            - _residual(
-                hint_e, 0.0 if False else (xe - ex[hint_e]) / el[hint_e], nsh, resid, bubble
-            )
-            * fa
-        )
-        plastic = law != HERTZ and delta_a > d_y
-        peak_d = delta_a
-
+    tol_t = 1e-14 * max(1.0, abs(t0) + abs(sample_t[-1]))
     while i_samp < ns:
-        # the next stop: a sample, a kink, or h_max on
         target = sample_t[i_samp]
-        while i_stop < stops.size and stops[i_stop] <= t + 1e-15:
+        while i_stop < stops.size and stops[i_stop] <= t + tol_t:
             i_stop += 1
         if i_stop < stops.size and stops[i_stop] < target:
             target = stops[i_stop]
         span = target - t
-        if span > 1e-15:
-            k = int(math.ceil(span / h_max * (1.0 - 1e-12)))
-            tau = span / k
-            if abs(tau - tau_n) > 1e-18:
-                _coefficients(lam, tau, e_n, a_n, b_n)
+        k_steps = 0
+        tau = 0.0
+        if span > tol_t:
+            k_steps = math.ceil(span / h_max * (1.0 - 1e-12))
+            tau = span / k_steps
+            if abs(tau - tau_n) > 1e-9 * tau:
+                coefficients(md, tau, co_n)
                 tau_n = tau
-            for _step in range(k):
-                remaining = tau
-                use_nominal = True
-                while remaining > 0.0:
-                    if use_nominal:
-                        ee, aa, bb = e_n, a_n, b_n
-                    else:
-                        _coefficients(lam, remaining, e_t, a_t, b_t)
-                        ee, aa, bb = e_t, a_t, b_t
-                    st = remaining
-                    # ---- trial step of length st ----
-                    xb = speed * (t + st)
-                    hint_e = _element(xb, ex, hint_e)
-                    xi = _shapes(xb, hint_e, ex, el, ephi, nsh)
-                    _interp_modes(hint_e, nsh, out_w, hb)
-                    _interp_modes(hint_e, nsh, inp, gb)
-                    w0 = 0.0
-                    bcoef = 0.0
-                    for j in range(m):
-                        z = ee[j] * zeta[j] + aa[j] * ua[j]
-                        zp[j] = z
-                        w0 += weight[j] * (hb[j] * z).real
-                        bcoef += weight[j] * (hb[j] * bb[j] * gb[j]).real
-                    rb = _residual(hint_e, xi, nsh, resid, bubble)
-                    ypred = y + st * v - load * st * st / (2.0 * mass) + st * st * fa / (6.0 * mass)
-                    ckb, _, hint_t = table_eval(tx, ty, tsl, tsr, tperiod, xb, hint_t)
-                    dstar = -ypred + ckb + w0
-                    kappa = st * st / (3.0 * mass) - bcoef + rb
-                    event = -1
-                    if contact:
-                        if dstar <= 0.0:
-                            event = EV_LOSS
-                    elif dstar > 0.0:
-                        event = EV_CONTACT
-                    if event >= 0:
-                        # locate the root of δ* on the step length (Illinois), then take that step
-                        lo = 0.0
-                        hi_s = st
-                        g_lo = delta_a if contact else delta_a
-                        if event == EV_LOSS:
-                            g_lo = -delta_a - 1e-300
-                        else:
-                            g_lo = delta_a - 1e-300
-                        g_hi = -dstar if event == EV_LOSS else dstar
-                        side = 0
-                        s_try = st
-                        for _it in range(80):
-                            if g_hi - g_lo == 0.0:
-                                s_try = 0.5 * (lo + hi_s)
-                            else:
-                                s_try = lo - g_lo * (hi_s - lo) / (g_hi - g_lo)
-                            if not (lo < s_try < hi_s):
-                                s_try = 0.5 * (lo + hi_s)
-                            _coefficients(lam, s_try, e_t, a_t, b_t)
-                            xs_ = speed * (t + s_try)
-                            hint_e = _element(xs_, ex, hint_e)
-                            _shapes(xs_, hint_e, ex, el, ephi, nsh)
-                            _interp_modes(hint_e, nsh, out_w, hb)
-                            ws = 0.0
-                            for j in range(m):
-                                ws += weight[j] * (hb[j] * (e_t[j] * zeta[j] + a_t[j] * ua[j])).real
-                            yps = (
-                                y
-                                + s_try * v
-                                - load * s_try * s_try / (2.0 * mass)
-                                + s_try * s_try * fa / (6.0 * mass)
-                            )
-                            cks, _, hint_t = table_eval(tx, ty, tsl, tsr, tperiod, xs_, hint_t)
-                            ds = -yps + cks + ws
-                            gs = -ds if event == EV_LOSS else ds
-                            if gs > 0.0:
-                                hi_s = s_try
-                                g_hi = gs
-                                if side == 1:
-                                    g_lo *= 0.5
-                                side = 1
-                            else:
-                                lo = s_try
-                                g_lo = gs
-                                if side == -1:
-                                    g_hi *= 0.5
-                                side = -1
-                            if hi_s - lo <= 1e-15 * max(1.0, abs(t)) + 1e-14 * st:
-                                break
-                        st = hi_s
-                        _coefficients(lam, st, e_t, a_t, b_t)
-                        ee, aa, bb = e_t, a_t, b_t
-                        xb = speed * (t + st)
-                        hint_e = _element(xb, ex, hint_e)
-                        xi = _shapes(xb, hint_e, ex, el, ephi, nsh)
-                        _interp_modes(hint_e, nsh, out_w, hb)
-                        _interp_modes(hint_e, nsh, inp, gb)
-                        w0 = 0.0
-                        bcoef = 0.0
-                        for j in range(m):
-                            z = ee[j] * zeta[j] + aa[j] * ua[j]
-                            zp[j] = z
-                            w0 += weight[j] * (hb[j] * z).real
-                            bcoef += weight[j] * (hb[j] * bb[j] * gb[j]).real
-                        rb = _residual(hint_e, xi, nsh, resid, bubble)
-                        ypred = (
-                            y + st * v - load * st * st / (2.0 * mass) + st * st * fa / (6.0 * mass)
+        for k in range(k_steps):
+            remaining = tau
+            if k == k_steps - 1:
+                remaining = target - t
+            nominal = abs(remaining - tau_n) <= 1e-9 * tau_n
+            while remaining > tol_t:
+                co = co_n
+                if not nominal:
+                    coefficients(md, remaining, co_t)
+                    co = co_t
+                st = remaining
+                xb = wh.speed * (t + st)
+                he = element_at(xb, md.ex, he)
+                xi = shapes(xb, he, md, nsh)
+                w0, bc = predict(he, nsh, md, co, zr, zi, ur, ui, pr, pi, gr, gi, qr, qi)
+                rb = residual(he, xi, nsh, md)
+                ypred = (
+                    y
+                    + st * v
+                    - wh.load * st * st / (2.0 * wh.mass)
+                    + st * st * fa / (6.0 * wh.mass)
+                )
+                ckb, _, ht = table_eval(tab.x, tab.y, tab.sl, tab.sr, tab.period, xb, ht)
+                dstar = -ypred + ckb + w0
+                kappa = st * st / (3.0 * wh.mass) - bc + rb
+                event = -1
+                if contact and dstar <= 0.0:
+                    event = EV_LOSS
+                elif (not contact) and dstar > 0.0:
+                    event = EV_CONTACT
+                if event >= 0:
+                    # the root of the force-free δ* on the step length: Illinois false position
+                    sgn = -1.0 if event == EV_LOSS else 1.0
+                    lo = 0.0
+                    hi = st
+                    g_lo = -abs(delta_a) - 1e-300
+                    g_hi = sgn * dstar
+                    side = 0
+                    for _it in range(100):
+                        s = lo - g_lo * (hi - lo) / (g_hi - g_lo)
+                        if not (lo < s < hi):
+                            s = 0.5 * (lo + hi)
+                        coefficients(md, s, co_t)
+                        xs = wh.speed * (t + s)
+                        he = element_at(xs, md.ex, he)
+                        shapes(xs, he, md, nsh)
+                        ws, _ = predict(he, nsh, md, co_t, zr, zi, ur, ui, pr, pi, gr, gi, qr, qi)
+                        yps = (
+                            y
+                            + s * v
+                            - wh.load * s * s / (2.0 * wh.mass)
+                            + s * s * fa / (6.0 * wh.mass)
                         )
-                        ckb, _, hint_t = table_eval(tx, ty, tsl, tsr, tperiod, xb, hint_t)
-                        dstar = -ypred + ckb + w0
-                        kappa = st * st / (3.0 * mass) - bcoef + rb
-                    # ---- commit ----
-                    if event == EV_LOSS or (event < 0 and not contact):
-                        fb = 0.0
-                    elif event == EV_CONTACT:
-                        fb = 0.0
-                    else:
-                        fb = _solve_force(dstar, kappa, law, cc, f_y, d_y, theta)
-                    for j in range(m):
-                        zeta[j] = zp[j] + bb[j] * gb[j] * fb
-                        ua[j] = gb[j] * fb
-                    y = ypred + st * st * fb / (3.0 * mass)
-                    v = v - load * st / mass + st * (fa + fb) / (2.0 * mass)
-                    delta_b = dstar - kappa * fb if (contact and event != EV_LOSS) else dstar
-                    if not contact:
-                        t_flight += st
-                    t_new = t + st
-                    if event == EV_LOSS:
-                        contact = False
-                        delta_b = 0.0
-                    elif event == EV_CONTACT:
-                        contact = True
-                        delta_b = 0.0
-                    if event >= 0 and n_tr < transitions.shape[0]:
+                        cks, _, ht = table_eval(tab.x, tab.y, tab.sl, tab.sr, tab.period, xs, ht)
+                        gs = sgn * (-yps + cks + ws)
+                        if gs > 0.0:
+                            hi = s
+                            g_hi = gs
+                            if side == 1:
+                                g_lo *= 0.5
+                            side = 1
+                        else:
+                            lo = s
+                            g_lo = gs
+                            if side == -1:
+                                g_hi *= 0.5
+                            side = -1
+                        if hi - lo <= tol_t:
+                            break
+                    st = hi
+                    coefficients(md, st, co_t)
+                    xb = wh.speed * (t + st)
+                    he = element_at(xb, md.ex, he)
+                    xi = shapes(xb, he, md, nsh)
+                    w0, bc = predict(he, nsh, md, co_t, zr, zi, ur, ui, pr, pi, gr, gi, qr, qi)
+                    ypred = (
+                        y
+                        + st * v
+                        - wh.load * st * st / (2.0 * wh.mass)
+                        + st * st * fa / (6.0 * wh.mass)
+                    )
+                    ckb, _, ht = table_eval(tab.x, tab.y, tab.sl, tab.sr, tab.period, xb, ht)
+                    dstar = -ypred + ckb + w0
+                fb = 0.0
+                delta_b = dstar
+                if contact and event < 0:
+                    fb = solve_force(dstar, kappa, wh)
+                    delta_b = dstar - kappa * fb
+                commit(fb, zr, zi, ur, ui, pr, pi, gr, gi, qr, qi)
+                y = ypred + st * st * fb / (3.0 * wh.mass)
+                v = v - wh.load * st / wh.mass + st * (fa + fb) / (2.0 * wh.mass)
+                if not contact:
+                    t_flight += st
+                t_new = t + st
+                if event >= 0:
+                    contact = event == EV_CONTACT
+                    delta_b = 0.0
+                    if n_tr < transitions.shape[0]:
                         transitions[n_tr, 0] = t_new
                         transitions[n_tr, 1] = event
                         n_tr += 1
-                    # the plastic range: entry and exit (located on the committed step's δ, linearly)
-                    if law != HERTZ and contact:
-                        up = d_y + hyst
-                        down = d_y - hyst
-                        if (not plastic) and delta_b > up:
-                            fr = (up - delta_a) / (delta_b - delta_a) if delta_b != delta_a else 1.0
-                            if n_tr < transitions.shape[0]:
-                                transitions[n_tr, 0] = t + fr * st
-                                transitions[n_tr, 1] = EV_YIELD
-                                n_tr += 1
-                            plastic = True
-                        elif plastic and delta_b < down:
-                            fr = (
-                                (delta_a - down) / (delta_a - delta_b)
-                                if delta_b != delta_a
-                                else 1.0
-                            )
-                            if n_tr < transitions.shape[0]:
-                                transitions[n_tr, 0] = t + fr * st
-                                transitions[n_tr, 1] = EV_UNYIELD
-                                n_tr += 1
-                            plastic = False
-                    elif plastic and not contact:
+                if plastic_law:
+                    up = wh.d_y + wh.hyst
+                    down = wh.d_y - wh.hyst
+                    kind = -1
+                    fr = 1.0
+                    if contact and (not plastic) and delta_b > up:
+                        kind = EV_YIELD
+                        fr = (up - delta_a) / (delta_b - delta_a)
+                    elif plastic and (delta_b < down or not contact):
+                        kind = EV_UNYIELD
+                        fr = (delta_a - down) / (delta_a - delta_b) if delta_b < down else 1.0
+                    if kind >= 0:
+                        plastic = kind == EV_YIELD
                         if n_tr < transitions.shape[0]:
-                            transitions[n_tr, 0] = t_new
-                            transitions[n_tr, 1] = EV_UNYIELD
+                            transitions[n_tr, 0] = t + min(max(fr, 0.0), 1.0) * st
+                            transitions[n_tr, 1] = kind
                             n_tr += 1
-                        plastic = False
-                    if track_dents and contact and delta_b > d_y and n_dent < dents.shape[0]:
-                        cx, _, _, _ = linear_at(tx, tcx, tperiod, xb, hint_t, False)
-                        dents[n_dent, 0] = t_new
-                        dents[n_dent, 1] = cx
-                        dents[n_dent, 2] = delta_b
-                        n_dent += 1
-                    # extrema: the peak through a parabola of the last three step ends
-                    if fb > peak:
-                        peak = fb
-                    if f_prev1 > fb and f_prev1 >= f_prev2 and f_prev2 >= 0.0 and fb > 0.0:
-                        den = f_prev2 - 2.0 * f_prev1 + fb
-                        if den < 0.0:
-                            top = f_prev1 - 0.125 * (f_prev2 - fb) ** 2 / den
-                            if top > peak and top < 2.0 * f_prev1:
-                                peak = top
-                    if contact:
-                        if fb < least:
-                            least = fb
-                    if delta_b > peak_d:
-                        peak_d = delta_b
-                    f_prev2 = f_prev1
-                    f_prev1 = fb
-                    t_prev1 = t_new
-                    fa = fb
-                    delta_a = delta_b
-                    t = t_new
-                    remaining -= st
-                    if remaining <= 1e-15 * max(1.0, abs(t)):
-                        remaining = 0.0
-                    use_nominal = False
-                    n_steps += 1
-        else:
-            t = target
-        # ---- a sample at t? ----
-        if abs(t - sample_t[i_samp]) <= 1e-12 * max(1.0, abs(t)) or t >= sample_t[i_samp]:
-            xs = speed * t
-            hint_e = _element(xs, ex, hint_e)
-            xi = _shapes(xs, hint_e, ex, el, ephi, nsh)
-            _interp_modes(hint_e, nsh, out_w, hb)
-            _interp_modes(hint_e, nsh, inp, gb)
-            wv = 0.0
-            vw = 0.0
+                if track_dents and contact and delta_b > wh.d_y and n_dent < dents.shape[0]:
+                    cx, _, _, _ = linear_at(tab.x, tab.cx, tab.period, xb, ht, False)
+                    dents[n_dent, 0] = t_new
+                    dents[n_dent, 1] = cx
+                    dents[n_dent, 2] = delta_b
+                    n_dent += 1
+                # extrema: the peak through a parabola of the last three step ends
+                if fb > peak:
+                    peak = fb
+                if 0.0 <= f_prev2 <= f_prev1 and f_prev1 > fb > 0.0:
+                    den = f_prev2 - 2.0 * f_prev1 + fb
+                    if den < 0.0:
+                        top = f_prev1 - 0.125 * (f_prev2 - fb) ** 2 / den
+                        if peak < top < 2.0 * f_prev1:
+                            peak = top
+                if contact and fb < least:
+                    least = fb
+                if delta_b > peak_d:
+                    peak_d = delta_b
+                f_prev2 = f_prev1
+                f_prev1 = fb
+                fa = fb
+                delta_a = delta_b
+                t = t_new
+                remaining -= st
+                nominal = False
+                n_steps += 1
+        t = max(t, target)
+        if t >= sample_t[i_samp] - tol_t:
+            xs = wh.speed * t
+            he = element_at(xs, md.ex, he)
+            xi = shapes(xs, he, md, nsh)
+            load_rows(he, nsh, md, gr, gi)
+            wv = deflection(he, nsh, md, zr, zi)
+            # the rail's velocity under the wheel: Σ weight·Re(h·(λζ + g·F))
             for j in range(m):
-                wv += weight[j] * (hb[j] * zeta[j]).real
-                vw += weight[j] * (hb[j] * (lam[j] * zeta[j] + gb[j] * fa)).real
-            rr = _residual(hint_e, xi, nsh, resid, bubble)
-            ck, _, hint_t = table_eval(tx, ty, tsl, tsr, tperiod, xs, hint_t)
+                pr[j] = md.lam_r[j] * zr[j] - md.lam_i[j] * zi[j] + gr[j] * fa
+                pi[j] = md.lam_r[j] * zi[j] + md.lam_i[j] * zr[j] + gi[j] * fa
+            vw = deflection(he, nsh, md, pr, pi)
+            rr = residual(he, xi, nsh, md)
+            ck, _, ht = table_eval(tab.x, tab.y, tab.sl, tab.sr, tab.period, xs, ht)
             row = samples[i_samp]
             row[C_T] = t
             row[C_X] = xs
@@ -516,10 +544,12 @@ def run(
             row[C_CONTACT] = 1.0 if contact else 0.0
             row[C_VW] = vw
             for i in range(nc):
+                cr = md.crib_r[i]
+                ci = md.crib_i[i]
                 s = 0.0
                 for j in range(m):
-                    s += weight[j] * (crib_rows[i, j] * (lam[j] * zeta[j] + gb[j] * fa)).real
-                if crib_lo[i] < xs < crib_hi[i]:
+                    s += cr[j] * pr[j] - ci[j] * pi[j]
+                if md.crib_lo[i] < xs < md.crib_hi[i]:
                     s += fa
                 channels[i_samp, i] = s
             i_samp += 1
