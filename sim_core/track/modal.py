@@ -110,8 +110,8 @@ class ModalTrack:
             c(self.bubble),
             c(self.crib_lo),
             c(self.crib_hi),
-            c(rows.real.reshape(len(self.crib_ids), -1)),
-            c(rows.imag.reshape(len(self.crib_ids), -1)),
+            c(rows.real.reshape(len(self.crib_ids), self.n_modes)),
+            c(rows.imag.reshape(len(self.crib_ids), self.n_modes)),
         )
 
     def element_of(self, x: float) -> int:

@@ -119,7 +119,7 @@ def simulate_on_track(
     sample_t = np.minimum(t0 + np.arange(n_samples) / spec.sample_rate, t1)
     kinks = table.kinks_between(x0 - 1e-12, x1 + table.resolution)
     if kinks.size:
-        at = np.searchsorted(table.x, kinks)
+        at = np.minimum(np.searchsorted(table.x, kinks), table.x.size - 1)
         jump = np.abs(table.slope_right[at] - table.slope_left[at])
         kinks = kinks[jump * v * h_max > KINK_FRACTION * d0]
     stops = np.ascontiguousarray(np.sort(kinks / v), dtype=np.float64)

@@ -1,0 +1,69 @@
+"""The track's point receptance α(f) = w/F at a rail position: from the finite-element model
+directly, and from the reduced modal model (what the stepper integrates).
+
+The direct one solves (K + iωC − ω²M)·u = N(x) per frequency; the modal one sums the
+kept complex modes and adds the static residual. Their agreement up to the cutoff is
+the reduction's own check; the direct one against ROSE's is the model's
+(``validation/track_validation.py``, docs/MODEL.md §8).
+
+Worked example (at 0 Hz both are the static compliance):
+
+    >>> import numpy as np
+    >>> from sim_core.track.spec import Support, TrackSpec
+    >>> from sim_core.track.modal import reduce_track
+    >>> t = TrackSpec.slab(sleeper_spacing=0.6, first_sleeper=0.0, pad=Support(6e7, 1.5e4))
+    >>> mt = reduce_track(t, 0.0, 1.2, cutoff=2000.0)
+    >>> a = modal_receptance(mt, 0.3, np.array([0.0]))[0]
+    >>> bool(abs(a.real / mt.static_compliance(0.3) - 1) < 1e-9)
+    True
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg as sla
+from numpy.typing import NDArray
+
+from sim_core.track.assembly import assemble
+from sim_core.track.beam import deflection_shapes
+from sim_core.track.modal import ModalTrack
+
+
+def _load_vector(mt: ModalTrack, x: float, n_dofs: int) -> NDArray[np.float64]:
+    e = mt.element_of(x)
+    xi = (x - mt.elem_x[e]) / mt.elem_len[e]
+    b = np.zeros(n_dofs)
+    b[2 * e : 2 * e + 4] = deflection_shapes(xi, float(mt.elem_len[e]), float(mt.elem_phi[e]))
+    return b
+
+
+def fe_receptance(mt: ModalTrack, x: float, freqs: NDArray[np.float64]) -> NDArray[np.complex128]:
+    """α(f) of the full finite-element model at x, m/N (a downward force, a downward deflection)."""
+    mats = assemble(mt.track, mt.layout)
+    b = _load_vector(mt, x, mats.k.shape[0])
+    out = np.empty(freqs.size, dtype=np.complex128)
+    for i, f in enumerate(freqs):
+        w = 2.0 * np.pi * f
+        u = sla.solve(mats.k + 1j * w * mats.c - w * w * mats.m, b.astype(np.complex128))
+        out[i] = b @ u
+    return out
+
+
+def modal_receptance(
+    mt: ModalTrack, x: float, freqs: NDArray[np.float64]
+) -> NDArray[np.complex128]:
+    """α(f) of the reduced model at x (modes plus the static residual), m/N."""
+    e = mt.element_of(x)
+    xi = (x - mt.elem_x[e]) / mt.elem_len[e]
+    n = deflection_shapes(xi, float(mt.elem_len[e]), float(mt.elem_phi[e]))
+    h = n @ mt.out_w[2 * e : 2 * e + 4]
+    g = n @ mt.inp[2 * e : 2 * e + 4]
+    s = 2j * np.pi * np.asarray(freqs)[:, None]
+    # ζ = g·F/(s − λ) for a unit downward force; its downward deflection is −Σ weight·Re-part
+    # taken as the analytic continuation: the pair (λ, λ̄) gives h g/(s−λ) + conj(h g)/(s−λ̄)
+    hg = h * g
+    pair = mt.weight > 1.0
+    terms = np.where(
+        pair, hg / (s - mt.lam) + np.conj(hg) / (s - np.conj(mt.lam)), hg / (s - mt.lam)
+    )
+    return -terms.sum(axis=1) + mt.residual_compliance(x)
