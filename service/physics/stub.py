@@ -1,9 +1,11 @@
 """A closed-form stand-in for the site physics: instant, deterministic, no dents.
 
 The wheel rides at static equilibrium δ0 = (P/C)^(2/3) plus a small damped
-ripple; a wheel with a non-round outline gets a force spike once a turn. Only
-for exercising the service (tests of the plumbing, overhead benchmarks): the
-numbers are not physics.
+ripple; a wheel with a non-round outline gets a force spike once a turn. At a
+site with a detector each crib's channel is the force while the wheel centre is
+between the crib's gauges and 0 elsewhere (an ideal shear bridge). Only for
+exercising the service (tests of the plumbing, overhead benchmarks): the numbers
+are not physics.
 """
 
 from __future__ import annotations
@@ -50,6 +52,8 @@ class StubPhysics:
         force = C_HERTZ * np.clip(delta, 0.0, None) ** 1.5
         y_c = -ripple
         y_ck = np.zeros(n)
+        cribs = site.detector.cribs if site.detector is not None else []
+        channels = {c.id: np.where((x >= c.x_a) & (x <= c.x_b), force, 0.0).tolist() for c in cribs}
         self._done += 1
         return PassageResult(
             site_id=site.site_id,
@@ -68,6 +72,7 @@ class StubPhysics:
             indentation=delta.tolist(),
             y_c=y_c.tolist(),
             y_ck=y_ck.tolist(),
+            channels=channels or None,
             transitions=[],
             summary=Summary(
                 peak_force=float(force.max()),
