@@ -363,6 +363,7 @@ def _serve(
                 mcap_max_bytes=int(args.mcap_max_mb * 2**20),
                 mcap_max_seconds=args.mcap_max_seconds,
                 keep_bytes=int(args.keep_gb * 2**30) if args.keep_gb > 0 else None,
+                cribs=tuple(c.id for c in site.detector.cribs) if site.detector else (),
                 metadata=(
                     ("railtwin_version", package_version()),
                     ("site", site.model_dump_json()),

@@ -15,6 +15,11 @@ and the MCAP ~40 bytes a sample (zstd; ~55 kB a wheel of ``make demo``, 1 351 sa
 so it is skipped, like a Rerun drawing, while the recorder is behind
 (``RecordingPlan.samples_backlog_bytes``, 16 MB): the result holds the same series.
 
+**Crib channels.** At a site with a detector each sample also carries ``channels``: crib
+id → that crib's channel Q(x_a) − Q(x_b) at the sample, N (``PassageResult.channels``), so
+``/railtwin/<site>/samples.channels.ch1`` plots crib ``ch1``'s channel against time beside
+``.force``. A site without a detector writes no ``channels`` key: its samples are as before.
+
 **Log.**
 For every ``ServiceError`` and ``Diagnosis`` it logs, the recorder also writes a
 ``foxglove.Log`` on ``railtwin/<site>/log`` (JSON, schema named ``foxglove.Log``): the
@@ -109,6 +114,8 @@ class PassageSample(BaseModel):
     """contact force F, N"""
     indentation: float
     """indentation δ, m (negative: out of contact)"""
+    channels: dict[str, float] | None = None
+    """crib id -> the crib's channel Q(x_a) − Q(x_b), N; only at a site with a detector"""
 
 
 def samples_topic(topic: str) -> str:
@@ -119,26 +126,39 @@ def samples_topic(topic: str) -> str:
 def samples(result_json: bytes) -> Iterator[tuple[int, bytes]]:
     """(time in UNIX ns, ``PassageSample`` JSON) of every sample of a ``PassageResult``'s
     JSON; nothing for JSON that is not one. Values have 7 significant digits (a plot's
-    precision; the result has them exact): a quarter less MCAP than all 17.
+    precision; the result has them exact): a quarter less MCAP than all 17. A result with
+    ``channels`` (a site with a detector) gives each sample its channels' values too.
 
     >>> r = b'{"passage_id": "p1", "timestamp": 10.0, "speed": 40.0, "x": [0.0, 0.4],'
-    >>> r += b' "force": [1.0, 2.5e5], "indentation": [0.0, 1e-4]}'
-    >>> [(t, PassageSample.model_validate_json(d).force) for t, d in samples(r)]
+    >>> r += b' "force": [1.0, 2.5e5], "indentation": [0.0, 1e-4]'
+    >>> [(t, PassageSample.model_validate_json(d).force) for t, d in samples(r + b'}')]
     [(10000000000, 1.0), (10010000000, 250000.0)]
+    >>> r += b', "channels": {"ch1": [0.0, 2.4e5]}}'
+    >>> [PassageSample.model_validate_json(d).channels for _, d in samples(r)]
+    [{'ch1': 0.0}, {'ch1': 240000.0}]
     """
     try:
         r = json.loads(result_json)
         pid, t0, speed = json.dumps(str(r["passage_id"])), float(r["timestamp"]), float(r["speed"])
         xs, fs, ds = r["x"], r["force"], r["indentation"]
-    except (ValueError, KeyError, TypeError):
+        channels: dict[str, list[float]] = r.get("channels") or {}
+        names = [json.dumps(str(c)) for c in channels]
+        columns = [[float(v) for v in c] for c in channels.values()]
+    except (ValueError, KeyError, TypeError, AttributeError):
         return
-    for x, f, d in zip(xs, fs, ds, strict=False):
+    pairs = list(zip(names, columns, strict=True))
+    if any(len(c) != len(xs) for c in columns):  # not a valid result: its series alone
+        pairs = []
+    for i, (x, f, d) in enumerate(zip(xs, fs, ds, strict=False)):
         ns = round((t0 + x / speed) * 1e9)
         sec, nsec = divmod(ns, 1_000_000_000)
+        crib = (
+            ',"channels":{' + ",".join(f"{n}:{c[i]:.7g}" for n, c in pairs) + "}" if pairs else ""
+        )
         yield (
             ns,
             (
                 f'{{"timestamp":{{"sec":{sec},"nsec":{nsec}}},"passage_id":{pid},'
-                f'"x":{x:.7g},"force":{f:.7g},"indentation":{d:.7g}}}'
+                f'"x":{x:.7g},"force":{f:.7g},"indentation":{d:.7g}{crib}}}'
             ).encode(),
         )

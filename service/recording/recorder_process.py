@@ -81,6 +81,8 @@ class RecordingPlan:
     """Beyond this many bytes waiting, a message for the MCAP log waits for room."""
     rrd_part_passages: int = 5000
     """Passages and diagnoses per ``.rrd`` part (``service.recording.rerun_recording``)."""
+    cribs: tuple[str, ...] = ()
+    """The ids of the site's detector's cribs: the Rerun blueprint's channel plots."""
     mcap_wait_timeout: float = 60.0
     """A message that found no room within this many seconds is dropped (and counted)."""
 
@@ -372,7 +374,7 @@ def _child_main(
     )
     path = plan.rrd_path
     rerun = (
-        RerunRecording(path, plan.site_id, part_passages=plan.rrd_part_passages)
+        RerunRecording(path, plan.site_id, part_passages=plan.rrd_part_passages, cribs=plan.cribs)
         if path is not None
         else None
     )

@@ -16,10 +16,17 @@ entities as a run of one wheel; ``tests/test_service_rerun.py``):
 | ``<site>/rail/dent`` | accumulated dent depth after each passage that dented | m |
 | ``<site>/diagnosis/measured``, ``.../fit`` | measured and best-fit force of each diagnosis | N |
 | ``<site>/diagnosis/impacts`` | markers: the fitted flat under the wheel | N |
+| ``<site>/channels/<crib>`` | a detector's crib channel Q(x_a) − Q(x_b) of every wheel | N |
 
 Everything is in SI units (N, m, s), as in the messages, and every series and view
 names its unit (``F [N]``, ``δ [m]``); the text lines too.
 | ``<site>/diagnosis/verdict`` | one text line per diagnosis (verdict, flat, peak forces) | |
+
+At a site with a detector, each crib's channel (``PassageResult.channels``) goes to
+``<site>/channels/<crib>`` along the same time lines as the force; the default blueprint
+then has a second tab, ``Crib channels``: one plot per crib, its channel with the wheel's
+contact force F beside it (both in N: ≈ F while the wheel is between the crib's gauges,
+≈ 0 otherwise). The cribs are a site's fixed set, so the entities still do not grow.
 
 Time lines:
 
@@ -63,6 +70,7 @@ from __future__ import annotations
 
 import uuid
 from collections import OrderedDict
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -99,6 +107,7 @@ def entities(site_id: str) -> dict[str, str]:
     """{role: entity path} of a site's recording (the whole, fixed set)."""
     root = f"/{rr.escape_entity_path_part(site_id)}"
     return {
+        "root": root,
         "force": f"{root}/force",
         "transitions": f"{root}/force/transitions",
         "indentation": f"{root}/indentation",
@@ -115,7 +124,17 @@ def entities(site_id: str) -> dict[str, str]:
         "fit": f"{root}/diagnosis/fit",
         "impacts": f"{root}/diagnosis/impacts",
         "verdict": f"{root}/diagnosis/verdict",
+        "channels": f"{root}/channels",
     }
+
+
+def channel_entity(site_id: str, crib_id: str) -> str:
+    """The entity of crib ``crib_id``'s channel: ``/<site>/channels/<crib>``.
+
+    >>> channel_entity("demo", "ch1")
+    '/demo/channels/ch1'
+    """
+    return f"{entities(site_id)['channels']}/{rr.escape_entity_path_part(crib_id)}"
 
 
 def one_wheel_window() -> list[rrb.VisibleTimeRange]:
@@ -135,50 +154,68 @@ def one_wheel_window() -> list[rrb.VisibleTimeRange]:
     ]
 
 
-def default_blueprint(site_id: str) -> rrb.Blueprint:
-    """The wheel at the time cursor: its force (with its name beside it) on top, then
-    indentation, motion, the rail, the passages and the diagnoses."""
+def channel_views(site_id: str, cribs: Sequence[str]) -> rrb.Grid:
+    """One plot per crib: its channel, with the wheel's contact force F beside it (N)."""
     e = entities(site_id)
     window = one_wheel_window()
-    return rrb.Blueprint(
-        rrb.Vertical(
-            rrb.Horizontal(
-                rrb.TimeSeriesView(
-                    name="Contact force F [N] of the wheel at the cursor (x_mm: passage·10⁶ + mm)",
-                    origin=e["force"],
-                    time_ranges=window,
-                ),
-                rrb.TextDocumentView(name="Wheel at the cursor", origin=e["wheel"]),
-                column_shares=[3, 1],
+    return rrb.Grid(
+        *(
+            rrb.TimeSeriesView(
+                name=f"Crib {crib}: channel Q(x_a) − Q(x_b) and contact force F [N]",
+                origin=e["root"],
+                contents=[channel_entity(site_id, crib), e["force"]],
+                time_ranges=window,
+            )
+            for crib in cribs
+        ),
+        grid_columns=min(len(cribs), 4),
+        name="Crib channels",
+    )
+
+
+def default_blueprint(site_id: str, cribs: Sequence[str] = ()) -> rrb.Blueprint:
+    """The wheel at the time cursor: its force (with its name beside it) on top, then
+    indentation, motion, the rail, the passages and the diagnoses; with ``cribs`` (a site's
+    detector) a second tab with a plot per crib channel."""
+    e = entities(site_id)
+    window = one_wheel_window()
+    wheel = rrb.Vertical(
+        rrb.Horizontal(
+            rrb.TimeSeriesView(
+                name="Contact force F [N] of the wheel at the cursor (x_mm: passage·10⁶ + mm)",
+                origin=e["force"],
+                time_ranges=window,
+            ),
+            rrb.TextDocumentView(name="Wheel at the cursor", origin=e["wheel"]),
+            column_shares=[3, 1],
+        ),
+        rrb.TimeSeriesView(name="Indentation δ [m]", origin=e["indentation"], time_ranges=window),
+        rrb.Horizontal(
+            rrb.TimeSeriesView(
+                name="Wheel centre y_C and constraint y_C^k [m]",
+                origin=e["motion"],
+                time_ranges=window,
             ),
             rrb.TimeSeriesView(
-                name="Indentation δ [m]", origin=e["indentation"], time_ranges=window
+                name="Rail: profile (slot 0), then the dent after each denting passage [m]",
+                origin=e["rail"],
             ),
-            rrb.Horizontal(
-                rrb.TimeSeriesView(
-                    name="Wheel centre y_C and constraint y_C^k [m]",
-                    origin=e["motion"],
-                    time_ranges=window,
-                ),
-                rrb.TimeSeriesView(
-                    name="Rail: profile (slot 0), then the dent after each denting passage [m]",
-                    origin=e["rail"],
-                ),
-                rrb.TextLogView(
-                    name="Passages (click one to show its wheel)", origin=e["passages"]
-                ),
-            ),
-            rrb.Horizontal(
-                rrb.TimeSeriesView(
-                    name="Diagnosis: measured and fitted force [N]",
-                    origin=e["diagnosis"],
-                    time_ranges=window,
-                ),
-                rrb.TextLogView(name="Verdicts", origin=e["verdict"]),
-                column_shares=[3, 1],
-            ),
-            row_shares=[3, 2, 2, 2],
+            rrb.TextLogView(name="Passages (click one to show its wheel)", origin=e["passages"]),
         ),
+        rrb.Horizontal(
+            rrb.TimeSeriesView(
+                name="Diagnosis: measured and fitted force [N]",
+                origin=e["diagnosis"],
+                time_ranges=window,
+            ),
+            rrb.TextLogView(name="Verdicts", origin=e["verdict"]),
+            column_shares=[3, 1],
+        ),
+        row_shares=[3, 2, 2, 2],
+        name="Wheel" if cribs else None,
+    )
+    return rrb.Blueprint(
+        rrb.Tabs(wheel, channel_views(site_id, cribs), active_tab=0) if cribs else wheel,
         rrb.TimePanel(timeline=X_TIMELINE, state="collapsed"),
         rrb.SelectionPanel(state="collapsed"),
         rrb.BlueprintPanel(state="collapsed"),
@@ -227,6 +264,13 @@ def wheel_document(index: int, r: PassageResult) -> str:
         f"- contact losses {s.contact_losses}, out of contact {si(s.time_out_of_contact, 's')}\n"
         f"- max δ {si(s.max_indentation, 'm')}, dent {si(s.max_dent, 'm')}\n"
         f"- transitions: {kinds or 'none'}{more}\n"
+        + (
+            "- crib channels, peak: "
+            + ", ".join(f"{c} {si(max(v, default=0.0), 'N')}" for c, v in r.channels.items())
+            + "\n"
+            if r.channels
+            else ""
+        )
     )
 
 
@@ -240,10 +284,16 @@ class RerunRecording:
         *,
         recording_id: str | None = None,
         part_passages: int = PART_PASSAGES,
+        cribs: Sequence[str] = (),
     ) -> None:
+        """``cribs``: the ids of the site's detector's cribs (the blueprint's channel plots);
+        a result's channel of another crib is drawn all the same, without a plot of its own."""
         path.parent.mkdir(parents=True, exist_ok=True)
         self.site_id = site_id
         self.entities = entities(site_id)
+        self.cribs = tuple(cribs)
+        self._channel_entities: dict[str, str] = {}
+        """crib id -> its entity, for the cribs styled in the part being written."""
         self.recording_id = recording_id or str(uuid.uuid4())
         self.part_passages = part_passages
         self.files: list[Path] = []
@@ -264,9 +314,10 @@ class RerunRecording:
 
     def _open(self, path: Path) -> None:
         self.rec = rr.RecordingStream(f"railtwin-{self.site_id}", recording_id=self.recording_id)
-        self.rec.save(str(path), default_blueprint=default_blueprint(self.site_id))
+        self.rec.save(str(path), default_blueprint=default_blueprint(self.site_id, self.cribs))
         self.files.append(path)
         self._in_part = 0
+        self._channel_entities = {}
         self._style()
         if self._rail is not None:
             self.log_rail(*self._rail)
@@ -314,6 +365,20 @@ class RerunRecording:
             rr.SeriesPoints(markers="cross", marker_sizes=6.0, names="impacts F [N]"),
             static=True,
         )
+        for crib in self.cribs:
+            self._channel_entity(crib)
+
+    def _channel_entity(self, crib: str) -> str:
+        """Crib ``crib``'s entity, named (static) the first time in this part."""
+        entity = self._channel_entities.get(crib)
+        if entity is None:
+            entity = self._channel_entities[crib] = channel_entity(self.site_id, crib)
+            self.rec.log(
+                entity,
+                rr.SeriesLines(names=f"{crib} Q(x_a) − Q(x_b) [N]", aggregation_policy="MinMax"),
+                static=True,
+            )
+        return entity
 
     def passage_index(self, passage_id: str) -> int | None:
         """The index (``passage`` time line) of a recent passage, None if not recorded."""
@@ -368,8 +433,9 @@ class RerunRecording:
         )
 
     def log_passage(self, result: PassageResult) -> None:
-        """Force, indentation, y_C, y_C^k, transitions, the wheel's name and a text line,
-        all in the next slot (``passage`` = index, ``x_mm`` = index·10⁶ + mm)."""
+        """Force, indentation, y_C, y_C^k, the crib channels (a site with a detector),
+        transitions, the wheel's name and a text line, all in the next slot (``passage`` =
+        index, ``x_mm`` = index·10⁶ + mm)."""
         self._next_part()
         e = self.entities
         index = self._passages
@@ -386,7 +452,11 @@ class RerunRecording:
             (e["y_c"], np.asarray(result.y_c, dtype=np.float64)),
             (e["y_ck"], np.asarray(result.y_ck, dtype=np.float64)),
         )
-        for entity, values in series:
+        channels = (
+            (self._channel_entity(crib), np.asarray(values, dtype=np.float64))
+            for crib, values in (result.channels or {}).items()
+        )
+        for entity, values in (*series, *channels):
             self.rec.send_columns(
                 entity, indexes=index_cols, columns=rr.Scalars.columns(scalars=values)
             )
