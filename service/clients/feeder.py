@@ -3,7 +3,8 @@
     railtwin feed --train recordings/samples/train_160kmh.json \\
         --site demo --connect tcp/127.0.0.1:7447
 
-Used by ``make demo`` (one line per wheel: peak force, contact losses, dent)
+Used by ``make demo`` (one line per wheel: peak force, contact losses, dent, and the crib
+channels' peak at a site with a detector)
 and by the benchmark (latency from sending a passage to receiving its result,
 measured in this process with one clock). Waits for the service's subscriber
 to match before sending, so that no passage is lost to discovery.
@@ -183,14 +184,21 @@ def query_health(session: zenoh.Session, timeout: float = 2.0) -> list[Health]:
 
 
 def describe(r: PassageResult) -> str:
-    """One line per wheel, for the demo."""
+    """One line per wheel, for the demo; at a site with a detector, the highest of its crib
+    channels (kN, and which crib) and how many channels the result carried."""
     s = r.summary
     flag = "  <-- contact lost" if s.contact_losses else ""
     dent = f"{s.max_dent * 1e6:7.2f} µm" if s.max_dent > 0 else "      -   "
+    cribs = ""
+    if r.channels:
+        crib, peak = max(
+            ((c, max(v, default=0.0)) for c, v in r.channels.items()), key=lambda cv: cv[1]
+        )
+        cribs = f"  channels {len(r.channels)}, peak {peak / 1e3:7.1f} kN ({crib})"
     return (
         f"{r.passage_id:<16} axle {r.axle_index:>2}  peak {s.peak_force / 1e3:7.1f} kN  "
         f"losses {s.contact_losses:>2}  max δ {s.max_indentation * 1e6:6.1f} µm  "
-        f"dent {dent}{flag}"
+        f"dent {dent}{cribs}{flag}"
     )
 
 
