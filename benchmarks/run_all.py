@@ -6,6 +6,7 @@ Sections, each failing soft (the error is printed and the next one runs):
 
 1. ``core``: ``benchmarks.core_bench`` (simulation core vs SciPy ``solve_ivp``);
 2. ``constraint``: ``benchmarks.constraint_bench.run()`` if that module exists;
+   ``track``: ``benchmarks.track_bench`` (the discrete site case against real time);
 3. ``service``: ``benchmarks/service_bench.py`` in a child process (it starts the
    streaming service in a process of its own) under a timeout.
 
@@ -87,6 +88,13 @@ def section_constraint(quick: bool) -> tuple[str, Any] | None:
     return "```\n" + json.dumps(_jsonable(res), indent=1) + "\n```", res
 
 
+def section_track(quick: bool) -> tuple[str, Any]:
+    from benchmarks import track_bench
+
+    res = track_bench.run()
+    return str(res["markdown"]), res
+
+
 def section_service(quick: bool, wheels: int, timeout: float) -> tuple[str, Any]:
     cmd = [sys.executable, str(SERVICE_SCRIPT), "--wheels", str(8 if quick else wheels)]
     env = dict(os.environ)
@@ -121,7 +129,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     ap.add_argument("--service-wheels", type=int, default=SERVICE_WHEELS)
     ap.add_argument("--service-timeout", type=float, default=SERVICE_TIMEOUT)
-    ap.add_argument("--skip", nargs="*", default=[], choices=("core", "constraint", "service"))
+    ap.add_argument(
+        "--skip", nargs="*", default=[], choices=("core", "constraint", "track", "service")
+    )
     ap.add_argument("--out", type=Path, default=RESULTS)
     a = ap.parse_args(argv)
 
@@ -131,6 +141,11 @@ def main(argv: list[str] | None = None) -> int:
             "constraint",
             "Constraint tabulation (benchmarks.constraint_bench)",
             lambda: section_constraint(a.quick),
+        ),
+        (
+            "track",
+            "The site case on a discrete track (benchmarks.track_bench)",
+            lambda: section_track(a.quick),
         ),
         (
             "service",

@@ -604,11 +604,6 @@ def test_a_scenario_with_a_detector_runs_with_its_channels(track_scenario: dict[
     Result.model_validate_json(r.model_dump_json())
 
 
-@pytest.mark.xfail(
-    raises=ValueError,
-    reason="sim_core.track.modal: a track without cribs fails to reshape the crib rows "
-    "(reported to sim_core's owner; remove this marker once fixed)",
-)
 def test_a_track_without_a_detector_runs_without_channels(
     track_scenario: dict[str, Any],
 ) -> None:

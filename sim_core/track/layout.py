@@ -32,13 +32,13 @@ from numpy.typing import NDArray
 
 from sim_core.track.spec import TrackSpec
 
-MARGIN_BAYS = 6
+MARGIN_BAYS = 3
 """Plain bays each side of the simulated stretch (convergence: docs/MODEL.md §8)."""
 
-ABSORBER_BAYS = 10
+ABSORBER_BAYS = 8
 """Absorbing bays beyond each margin."""
 
-ELEMENTS_PER_BAY = 6
+ELEMENTS_PER_BAY = 12
 """Rail elements per sleeper bay along the stretch and its margins."""
 
 

@@ -549,8 +549,15 @@ def run(
                 s = 0.0
                 for j in range(m):
                     s += cr[j] * pr[j] - ci[j] * pi[j]
-                if md.crib_lo[i] < xs < md.crib_hi[i]:
+                # the wheel's load between the gauges; half of it on a gauge (the step's midpoint:
+                # a sample that falls exactly on a gauge crossing is a tie either way)
+                tie = 1e-9 * (1.0 + abs(xs))
+                lo = md.crib_lo[i]
+                hi = md.crib_hi[i]
+                if lo + tie < xs < hi - tie:
                     s += fa
+                elif abs(xs - lo) <= tie or abs(xs - hi) <= tie:
+                    s += 0.5 * fa
                 channels[i_samp, i] = s
             i_samp += 1
     extrema[E_PEAK_FORCE] = peak
