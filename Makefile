@@ -7,6 +7,7 @@
 #   make figures  draw the paper's figures into figures/
 #   make soak     20 000-passage burst (memory must plateau), kill -9 mid-stream, recover (minutes)
 #   make validate the wheel-flat diagnosis: independent wide set + own generator, railtwin diagnose timed (~3 min)
+#   make validate-track  the discrete/slab track against the independent reference's cases and ROSE (~3 min)
 #   make lint     ruff and mypy only
 #   make fleet-demo  router, three site twins, the fleet service, a growing flat's alarms (minutes)
 #   make fleet-bench the fleet at scale: 100 sites through a router, 10^6 rows, SQLite and PostgreSQL
@@ -29,10 +30,10 @@ WARMED := $(NUMBA_CACHE_DIR)/.warmed-stamp
 export RERUN_ANALYTICS ?= 0
 export PIP_DISABLE_PIP_VERSION_CHECK := 1
 
-.PHONY: help venv warm test lint ruff mypy pytest demo bench figures validate soak clean fleet-demo fleet-bench
+.PHONY: help venv warm test lint ruff mypy pytest demo bench figures validate validate-track soak clean fleet-demo fleet-bench
 
 help:
-	@sed -n '2,14p' Makefile | sed 's/^# \{0,1\}//'
+	@sed -n '2,15p' Makefile | sed 's/^# \{0,1\}//'
 
 $(BIN)/python:
 	$(PYTHON) -c 'import sys; assert sys.version_info >= (3, 11), "railtwin needs Python >= 3.11, got " + sys.version.split()[0]'
@@ -93,6 +94,9 @@ soak: $(WARMED)
 
 validate: $(WARMED)
 	nice -n 5 $(BIN)/python -m validation.diagnosis_validation
+
+validate-track: $(WARMED)
+	nice -n 5 $(BIN)/python -m validation.track_validation --out validation/track_results.md
 
 figures: $(WARMED)
 	$(BIN)/python -m service.cli figures --out figures/

@@ -247,8 +247,11 @@ def rose_rows() -> list[RoseRow]:
                         P_TOL_ROSE,
                     )
                 )
+                # the sleeper-passing line V/L_s or its harmonic, whichever ROSE found dominant
                 line = dominant_frequency(t[settle], f[settle], 5.0, 3000.0)
-                rows.append(RoseRow(f"{tag}: dominant line (V/L_s)", speed / 0.6, line, FREQ_TOL))
+                rose_line = r["dominant_freqs_Hz_relamp"][0][0]
+                k = round(rose_line / (speed / 0.6))
+                rows.append(RoseRow(f"{tag}: dominant line ({k}·V/L_s)", rose_line, line, FREQ_TOL))
             elif case == "flat":
                 for k, ev in enumerate(r["events"][:2]):
                     xc = ev["x_centre_m"] - 12.0

@@ -38,7 +38,7 @@ MARGIN_BAYS = 3
 ABSORBER_BAYS = 8
 """Absorbing bays beyond each margin."""
 
-ELEMENTS_PER_BAY = 12
+ELEMENTS_PER_BAY = 16
 """Rail elements per sleeper bay along the stretch and its margins."""
 
 

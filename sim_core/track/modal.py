@@ -47,7 +47,7 @@ from sim_core.track.layout import ABSORBER_BAYS, ELEMENTS_PER_BAY, MARGIN_BAYS, 
 from sim_core.track.spec import Crib, TrackSpec
 from sim_core.track.stepper import Modes
 
-CUTOFF = 12000.0
+CUTOFF = 16000.0
 """Highest undamped track frequency kept as a mode, Hz (convergence: docs/MODEL.md §8)."""
 
 MAX_MODES = 800
