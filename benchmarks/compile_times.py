@@ -3,7 +3,7 @@
     .venv/bin/python -m benchmarks.compile_times [--cache-dir DIR] [--top N] [--json FILE]
 
 Runs the service's warm-up (``SitePhysics.warm_up`` and ``Diagnoser.warm_up`` on
-``examples/site.toml``: every tabulation path, a passage, the dent press, a diagnosis)
+``examples/site_compliant.toml``: every tabulation path, a passage, the dent press, a diagnosis)
 twice, each in a fresh child process with ``NUMBA_CACHE_DIR`` pointed at one
 directory (a new temporary one unless ``--cache-dir`` is given):
 
@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
-SITE = ROOT / "examples" / "site.toml"
+SITE = ROOT / "examples" / "site_compliant.toml"
 
 
 @dataclass

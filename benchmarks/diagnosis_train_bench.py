@@ -1,7 +1,7 @@
 """Benchmark the diagnosis in the service: a 100-wheel train with 5 flat wheels.
 
     .venv/bin/python benchmarks/diagnosis_train_bench.py [--wheels 100] [--workers 2]
-        [--kmh 120] [--site examples/site.toml]
+        [--kmh 120] [--site examples/site_compliant.toml]
 
 Generates the site's measurement of every wheel first (the project's generator: 2 % noise,
 3 µm unknown roughness, foundation damping ratio 0.15; 5 wheels carry flats of both kinds,
@@ -89,7 +89,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--wheels", type=int, default=100)
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--kmh", type=float, default=120.0)
-    p.add_argument("--site", type=Path, default=ROOT / "examples/site.toml")
+    p.add_argument("--site", type=Path, default=ROOT / "examples/site_compliant.toml")
     p.add_argument("--timeout", type=float, default=300.0)
     a = p.parse_args(argv)
     site = load_site(a.site)

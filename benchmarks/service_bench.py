@@ -1,6 +1,6 @@
 """Benchmark the streaming twin: latency and throughput over loopback Zenoh, recording on.
 
-    .venv/bin/python benchmarks/service_bench.py [--wheels 200] [--site examples/site.toml]
+    .venv/bin/python benchmarks/service_bench.py [--wheels 200] [--site examples/site_compliant.toml]
 
 Starts ``railtwin serve`` in its own process (MCAP and Rerun on, unless
 ``--no-recording``), then drives it from this process:
@@ -140,7 +140,7 @@ def run_phase(
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--wheels", type=int, default=200)
-    p.add_argument("--site", type=Path, default=ROOT / "examples/site.toml")
+    p.add_argument("--site", type=Path, default=ROOT / "examples/site_compliant.toml")
     p.add_argument(
         "--physics",
         choices=("sim_core", "stub"),

@@ -46,7 +46,7 @@ from service.wire.site import load_site
 from service.wire.zenoh_session import build_config, free_tcp_endpoint, open_session
 
 ROOT = Path(__file__).resolve().parents[1]
-SITE = ROOT / "examples/site.toml"
+SITE = ROOT / "examples/site_compliant.toml"
 
 
 def tree(pid: int) -> list[int]:

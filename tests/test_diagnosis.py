@@ -32,7 +32,7 @@ from sim_core.rail import RailProfile
 from sim_core.wheel import WheelOutline
 
 ROOT = Path(__file__).resolve().parents[1]
-SITE = ROOT / "examples/site.toml"
+SITE = ROOT / "examples/site_compliant.toml"
 R, P, M = 0.46, 80e3, 600.0
 
 

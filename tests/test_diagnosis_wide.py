@@ -91,7 +91,7 @@ def test_a_record_the_model_cannot_make_is_not_explained_and_says_so() -> None:
     the residual stands far above the record's noise, ``explained`` is false, the reasons
     say so and the verdict is at least what the measured peaks alone give."""
     root = Path(__file__).resolve().parents[1]
-    site = load_site(root / "examples/site.toml")
+    site = load_site(root / "examples/site_compliant.toml")
     d = Diagnoser(site)
     p = WheelPassage(
         passage_id="odd",

@@ -40,7 +40,7 @@ from sim_core.diagnosis.synthetic import Perturbations, synthetic_measurement
 from tests.test_service_rerun import of_passage, passage_indexes, rrd_columns, rrd_texts
 
 ROOT = Path(__file__).resolve().parents[1]
-EXAMPLE_SITE = ROOT / "examples/site.toml"
+EXAMPLE_SITE = ROOT / "examples/site_compliant.toml"
 PAIRING_TIMEOUT = 1.0
 TIMEOUT = 30.0
 SPEED = 30.0
@@ -49,7 +49,7 @@ FLAT_LENGTH = 0.05
 
 
 def site_toml() -> str:
-    """examples/site.toml with ``[diagnosis] pairing_timeout = 1.0`` (its table kept if any)."""
+    """examples/site_compliant.toml with ``[diagnosis] pairing_timeout = 1.0`` (its table kept if any)."""
     lines = [
         ln
         for ln in EXAMPLE_SITE.read_text().splitlines()

@@ -153,6 +153,12 @@ def test_example_site_loads() -> None:
     site = load_site(ROOT / "examples/site.toml")
     assert site.site_id == "demo"
     assert site.length == 6.0
+    assert site.foundation.kind == "discrete" and site.detector is not None
+    assert [c.id for c in site.detector.cribs] == [f"ch{i}" for i in range(1, 9)]
+    compliant = load_site(ROOT / "examples/site_compliant.toml")  # the diagnosis's site
+    assert compliant.foundation.kind == "compliant" and compliant.detector is None
+    same = ("site_id", "length", "output_sample_rate", "rail", "material", "contact", "rtol")
+    assert compliant.model_dump(include=set(same)) == site.model_dump(include=set(same))
 
 
 def test_site_with_rail_file(tmp_path: Path) -> None:

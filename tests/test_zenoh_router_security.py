@@ -104,7 +104,7 @@ def region(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Path, str
     assert {"router", "fleet"} <= set(made)
     site_file = tmp / "site.toml"
     site_file.write_text(
-        (ROOT / "examples/site.toml")
+        (ROOT / "examples/site_compliant.toml")
         .read_text()
         .replace('site_id = "demo"', f'site_id = "{SITE_ID}"')
     )

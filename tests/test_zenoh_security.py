@@ -117,7 +117,7 @@ def deployment(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Deployment]
     assert set(made) >= {"ca", "twin", f"site-{SITE_ID}", "consumer", "intruder"}
     site_file = tmp / "site.toml"
     site_file.write_text(
-        (ROOT / "examples/site.toml")
+        (ROOT / "examples/site_compliant.toml")
         .read_text()
         .replace('site_id = "demo"', f'site_id = "{SITE_ID}"')
     )

@@ -3,7 +3,7 @@
     .venv/bin/python -m service.cli.fleet_demo [--out recordings/fleet-demo] [--linger 60]
 
 Starts, each in its own process, a Zenoh router on a free loopback port, three site
-twins (``railtwin serve`` with ``examples/site.toml`` renamed km12, km48 and km97,
+twins (``railtwin serve`` with ``examples/site_compliant.toml`` renamed km12, km48 and km97,
 connected to the router) and the fleet service (``railtwin fleet serve --connect ...
 --db OUT/fleet.sqlite --http ...``). Then one vehicle passes the three sites on three
 successive days: wheelset 2's left wheel has a flat growing 30 → 36 → 42 mm (its axle
@@ -148,7 +148,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument(
         "--site",
         type=Path,
-        default=ROOT / "examples/site.toml",
+        default=ROOT / "examples/site_compliant.toml",
         help="the site file the three sites are made from",
     )
     p.add_argument(

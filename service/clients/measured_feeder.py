@@ -1,7 +1,7 @@
 """Publish measured forces for some wheels of a train and print the twin's diagnoses.
 
     railtwin feed-measured --train recordings/samples/train_160kmh.json \\
-        --site-file examples/site.toml --connect tcp/127.0.0.1:7447 [--axles 0 5 13 20]
+        --site-file examples/site_compliant.toml --connect tcp/127.0.0.1:7447 [--axles 0 5 13 20]
         [--save M.json | --load M.json] [--with-train]
 
 The measurements are made by the generator (``railtwin synthesize``: each wheel's own
@@ -62,7 +62,7 @@ def describe(d: Diagnosis, latency: float) -> str:
 def add_arguments(p: argparse.ArgumentParser) -> None:
     """The options of ``railtwin feed-measured``."""
     p.add_argument("--train", type=Path, default=Path("recordings/samples/train_160kmh.json"))
-    p.add_argument("--site-file", type=Path, default=Path("examples/site.toml"))
+    p.add_argument("--site-file", type=Path, default=Path("examples/site_compliant.toml"))
     p.add_argument("--connect", action="append", default=[], metavar="ENDPOINT")
     p.add_argument("--axles", type=int, nargs="+", default=list(DEFAULT_AXLES))
     p.add_argument("--timeout", type=float, default=60.0)

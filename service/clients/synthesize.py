@@ -1,6 +1,6 @@
 """Synthetic measured passages for a site: ``railtwin synthesize``.
 
-    railtwin synthesize --site examples/site.toml --passage P.json
+    railtwin synthesize --site examples/site_compliant.toml --passage P.json
         [--flat flat|rounded_flat --length 0.05 --phase 1.0] [--seed 1]
         [--noise 0.03] [--roughness 3e-6] [--damping-ratio 0.15] [--speed-error 0.01]
         --out MEASURED.csv
