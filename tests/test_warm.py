@@ -23,9 +23,20 @@ def test_missing_site_file_is_a_usage_error(
 
 def test_every_group_step_is_known_and_an_unknown_one_refused() -> None:
     steps = [s for group in warm.GROUPS.values() for s in group]
-    assert sorted(steps) == ["constraint", "events", "passage"]  # each compiled once
+    assert sorted(steps) == ["constraint", "events", "passage", "track"]  # each compiled once
     with pytest.raises(ValueError, match="unknown warm-up step"):
         warm.warm_group(("everything",))
+
+
+def test_the_track_group_runs_a_passage_with_a_crib() -> None:
+    """A rail on sleepers has its own stepper (~30 s to compile): ``railtwin warm`` fills
+    the cache with it too, with one short passage whose crib channel is finite."""
+    assert warm.warm_group(("track",)) > 0.0
+
+
+def test_both_example_sites_are_warmed_by_default() -> None:
+    assert [p.name for p in warm.DEFAULT_SITES] == ["site.toml", "site_compliant.toml"]
+    assert all(p.is_file() for p in warm.DEFAULT_SITES)
 
 
 def test_sources_are_byte_compiled_where_python_writes_no_bytecode(

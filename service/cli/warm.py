@@ -1,18 +1,20 @@
 """``railtwin warm``: compile the physics into numba's cache, the independent parts in parallel.
 
-    railtwin warm [--site examples/site.toml] [--jobs N]
+    railtwin warm [--site SITE.toml]... [--jobs N]
     python -m service.cli.warm [...]                  # the same, without the entry point
 
 A first start otherwise compiles the whole physics in the service's one worker
 process, one function after the other (minutes on a cold cache). The compiled
 code falls into groups that share few compiled functions: the integrator
-(``sim_core.integrator.integrate`` and the kernels it calls) and the constraint's
-tabulation paths (``warm_up_constraint``). This command compiles them in ``--jobs``
-processes at once (default: 2, or one per CPU if fewer; ``GROUPS`` says who compiles
-what), each writing its functions to numba's cache (``NUMBA_CACHE_DIR``; the
-Makefile points it at ``.venv/numba-cache``), then runs the service's own
-warm-up for ``--site`` once, which loads them from the cache and compiles what is
-left (the site's own paths, the dent press, the diagnosis's fit).
+(``sim_core.integrator.integrate`` and the kernels it calls), the constraint's
+tabulation paths (``warm_up_constraint``) and the stepper of a rail on sleepers
+(``sim_core.track``, ~30 s). This command compiles them in ``--jobs`` processes at once
+(default: one per group, or one per CPU if fewer; ``GROUPS`` says who compiles what), each
+writing its functions to numba's cache (``NUMBA_CACHE_DIR``; the Makefile points it at
+``.venv/numba-cache``), then runs the service's own warm-up for each ``--site`` (default:
+``examples/site.toml``, a rail on sleepers with a detector, and
+``examples/site_compliant.toml``, the one the diagnosis fits), which loads them from the
+cache and compiles what is left (the site's own paths, the dent press, the diagnosis's fit).
 
 It also byte-compiles railtwin's own packages (``compile_sources``): Python reads a module's
 cached bytecode even where it does not write it (``PYTHONDONTWRITEBYTECODE``, set in many
@@ -41,18 +43,21 @@ from typing import Any
 import sim_core  # noqa: F401  (first: it points numba's cache at the venv's, sim_core/__init__)
 
 ROOT = Path(__file__).resolve().parents[2]
-DEFAULT_SITE = ROOT / "examples" / "site.toml"
+DEFAULT_SITES = (ROOT / "examples" / "site.toml", ROOT / "examples" / "site_compliant.toml")
+"""The example sites: a rail on sleepers with a detector (``make demo``), and the paper's
+lumped foundation (the diagnosis's)."""
 
 GROUPS: dict[str, tuple[str, ...]] = {
     "integrator": ("passage",),
     "events+constraint": ("events", "constraint"),
+    "track": ("track",),
 }
 """What each process compiles, in order. Numba compiles a function's callees first, each
 loading from the cache if it is there: the ``passage`` step compiles ``integrate`` from the
 top (the step loop, the Runge–Kutta steps, ...), while the other process compiles the
 integrator's event and record kernels (which the loop reaches last) and then the
 constraint's paths, so that the two take about as long and meet without compiling the
-same function twice."""
+same function twice. The track's stepper shares nothing with them: a third group."""
 
 
 def warm_group(steps: tuple[str, ...]) -> float:
@@ -67,6 +72,8 @@ def warm_group(steps: tuple[str, ...]) -> float:
             from sim_core.constraint import warm_up_constraint
 
             warm_up_constraint()
+        elif step == "track":
+            _warm_track()
         else:
             raise ValueError(f"unknown warm-up step {step!r}")
     return time.perf_counter() - start
@@ -98,6 +105,40 @@ def _warm_integrator() -> None:
     out = simulate_passage(flat_constraint(), spec)
     if not np.isfinite(out.force).all():
         raise RuntimeError("the warm-up passage gave a non-finite force")
+
+
+def _warm_track() -> None:
+    """One short passage on a rail on sleepers with a crib: compiles the track's stepper
+    (one signature, whatever the track, the contact law or the number of cribs)."""
+    import numpy as np
+
+    from sim_core.constraint import flat_constraint
+    from sim_core.contact_laws import ContactLaw, ContactModel
+    from sim_core.materials import Material, derive
+    from sim_core.passage import PassageSpec, simulate_passage
+    from sim_core.track.spec import Crib, Support, TrackSpec
+
+    d = derive(Material(2.14e11, 0.3), radius=0.46, load=60e3, mass=600.0)
+    track = TrackSpec.discrete(
+        sleeper_spacing=0.6,
+        first_sleeper=0.3,
+        pad=Support(2.0e8, 3.0e4),
+        sleeper_mass=150.0,
+        ballast=Support(1.2e8, 8.0e4),
+    )
+    spec = PassageSpec(
+        mass=600.0,
+        load=60e3,
+        speed=30.0,
+        duration=0.03,
+        sample_rate=1e4,
+        contact=ContactModel(ContactLaw.HERTZ, d.contact_coefficient),
+        foundation=track,
+        cribs=(Crib("c1", 0.4, 0.8),),
+    )
+    out = simulate_passage(flat_constraint(), spec)
+    if not (np.isfinite(out.force).all() and np.isfinite(out.channels["c1"]).all()):
+        raise RuntimeError("the warm-up passage on a track gave a non-finite force or channel")
 
 
 def _warm_integrator_kernels() -> None:
@@ -181,9 +222,10 @@ def compile_sources(packages: tuple[str, ...] = PACKAGES) -> bool:
     return ok
 
 
-def warm(site_file: Path, jobs: int, out: Any = sys.stdout) -> float:
-    """Byte-compile railtwin's packages, compile every group in ``jobs`` processes, then the
+def warm(site_files: Path | list[Path], jobs: int, out: Any = sys.stdout) -> float:
+    """Byte-compile railtwin's packages, compile every group in ``jobs`` processes, then each
     site's warm-up here; total s."""
+    sites = [site_files] if isinstance(site_files, Path) else list(site_files)
     start = time.perf_counter()
     if not compile_sources():
         print("railtwin warm: some modules did not byte-compile", file=out, flush=True)
@@ -196,13 +238,14 @@ def warm(site_file: Path, jobs: int, out: Any = sys.stdout) -> float:
     else:
         for g, steps in GROUPS.items():
             print(f"railtwin warm: {g} compiled in {warm_group(steps):.1f} s", file=out, flush=True)
-    t0 = time.perf_counter()
-    _warm_site(site_file)
-    print(
-        f"railtwin warm: site {site_file.name} warmed up in {time.perf_counter() - t0:.1f} s",
-        file=out,
-        flush=True,
-    )
+    for site_file in sites:
+        t0 = time.perf_counter()
+        _warm_site(site_file)
+        print(
+            f"railtwin warm: site {site_file.name} warmed up in {time.perf_counter() - t0:.1f} s",
+            file=out,
+            flush=True,
+        )
     return time.perf_counter() - start
 
 
@@ -227,8 +270,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--site",
         type=Path,
-        default=DEFAULT_SITE,
-        help="site file whose warm-up runs last (default: examples/site.toml)",
+        action="append",
+        default=None,
+        help="site file whose warm-up runs last (repeatable; default: examples/site.toml and "
+        "examples/site_compliant.toml)",
     )
     p.add_argument(
         "--jobs",
@@ -242,16 +287,18 @@ def handler(args: argparse.Namespace) -> int:
     if args.jobs < 1:
         print("railtwin warm: --jobs must be >= 1", file=sys.stderr)
         return 2
-    if not args.site.is_file():
-        print(f"railtwin warm: no site file {args.site}", file=sys.stderr)
-        return 2
+    sites: list[Path] = args.site or list(DEFAULT_SITES)
+    for site in sites:
+        if not site.is_file():
+            print(f"railtwin warm: no site file {site}", file=sys.stderr)
+            return 2
     cache = os.environ.get("NUMBA_CACHE_DIR", "numba's default (__pycache__ beside the sources)")
     print(
         f"railtwin warm: compiling the physics into {cache} ({args.jobs} process"
         f"{'es' if args.jobs > 1 else ''})",
         flush=True,
     )
-    total = warm(args.site, args.jobs)
+    total = warm(sites, args.jobs)
     print(f"railtwin warm: done in {total:.1f} s", flush=True)
     return 0
 
