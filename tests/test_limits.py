@@ -174,6 +174,37 @@ def test_lowest_speed_edge() -> None:
     )
 
 
+def test_crib_channels_raise_the_lowest_speed_by_the_bytes_they_publish() -> None:
+    """Each crib channel is one more float a sample in the published result: with 32 the
+    output bytes cap binds before the sample cap, and the error says the floor."""
+    cribs = [{"id": f"c{i}", "x_a": 0.4 + 0.6 * i, "x_b": 0.8 + 0.6 * i} for i in range(32)]
+    site = SiteConfig.model_validate(
+        SITE.model_dump()
+        | {
+            "length": 20.0,
+            "foundation": {
+                "kind": "slab",
+                "sleeper_spacing": 0.6,
+                "first_sleeper": 0.3,
+                "pad": {"stiffness": 2e8},
+            },
+            "detector": {"cribs": cribs},
+        }
+    )
+    assert limits.site_cribs(site) == 32
+    v = limits.lowest_speed(site.length, site.output_sample_rate, 32)
+    assert v > limits.lowest_speed(site.length, site.output_sample_rate)
+    n = limits.max_samples(32)
+    per = limits.bytes_per_sample(32)
+    assert n * per <= limits.MAX_PASSAGE_OUTPUT_BYTES < (n + 1) * per
+    ok = WheelPassage.model_validate({**BASE, "speed": v * (1 + 1e-9)})
+    assert limits.passage_problem(site, ok) is None
+    slow = WheelPassage.model_validate({**BASE, "speed": v * (1 - 1e-6)})
+    problem = limits.passage_problem(site, slow)
+    assert problem is not None and problem[0] == "speed"
+    assert "32 crib channels" in problem[1] and f"above {v:.6g} m/s" in problem[1]
+
+
 # --- the service's limits, on a twin with the stub physics ---------------------------------
 
 

@@ -9,6 +9,8 @@ the payload is parsed. Each refusal names the field that broke the limit.
     1351
     >>> lowest_speed(6.0, 10_000.0)
     0.4
+    >>> round(lowest_speed(6.0, 10_000.0, cribs=8), 4)  # the output bytes cap binds
+    0.5066
     >>> nesting_too_deep(b'{"a": [[[[[[[[1]]]]]]]]}', 8)
     True
     >>> nesting_too_deep(b'{"a": "[[[[[[[[[[[[[[[[[["}', 8)
@@ -37,6 +39,7 @@ if TYPE_CHECKING:
     from schemas.site import SiteConfig
 
 __all__ = [
+    "CHANNEL_BYTES_PER_SAMPLE",
     "DEFAULT_PASSAGE_BUDGET",
     "MAX_ID_LENGTH",
     "MAX_MEASURED_PAYLOAD_BYTES",
@@ -154,34 +157,53 @@ def passage_samples(length: float, sample_rate: float, speed: float) -> int:
     return math.floor(length / speed * sample_rate * (1.0 + 1e-12)) + 1
 
 
-def max_samples() -> int:
-    """The binding cap: the sample cap, or fewer if the output bytes cap is tighter."""
-    return min(MAX_PASSAGE_SAMPLES, MAX_PASSAGE_OUTPUT_BYTES // OUTPUT_BYTES_PER_SAMPLE)
+CHANNEL_BYTES_PER_SAMPLE = 25
+"""Bytes a crib channel adds to each sample a passage publishes: one more float in the
+result's JSON (``PassageResult.channels``), as ``OUTPUT_BYTES_PER_SAMPLE`` counts the others."""
 
 
-def lowest_speed(length: float, sample_rate: float) -> float:
+def bytes_per_sample(cribs: int = 0) -> int:
+    """Bytes a passage publishes per sample at a site with ``cribs`` crib channels."""
+    return OUTPUT_BYTES_PER_SAMPLE + CHANNEL_BYTES_PER_SAMPLE * cribs
+
+
+def site_cribs(site: SiteConfig) -> int:
+    """How many crib channels each of the site's passages publishes."""
+    return len(site.detector.cribs) if site.detector is not None else 0
+
+
+def max_samples(cribs: int = 0) -> int:
+    """The binding cap: the sample cap, or fewer if the output bytes cap is tighter (a site
+    with many crib channels)."""
+    return min(MAX_PASSAGE_SAMPLES, MAX_PASSAGE_OUTPUT_BYTES // bytes_per_sample(cribs))
+
+
+def lowest_speed(length: float, sample_rate: float, cribs: int = 0) -> float:
     """The speed a passage must exceed at a site, m/s: length·sample_rate / max_samples().
 
-    Above it a passage has at most ``max_samples()`` samples; at it, one more.
+    Above it a passage has at most ``max_samples(cribs)`` samples; at it, one more.
     """
-    return length * sample_rate / max_samples()
+    return length * sample_rate / max_samples(cribs)
 
 
 def passage_problem(site: SiteConfig, passage: WheelPassage) -> tuple[str, str] | None:
     """(field, message) when a valid passage is still too much for this site, else None."""
     n = passage_samples(site.length, site.output_sample_rate, passage.speed)
-    floor = lowest_speed(site.length, site.output_sample_rate)
+    cribs = site_cribs(site)
+    floor = lowest_speed(site.length, site.output_sample_rate, cribs)
     if n > MAX_PASSAGE_SAMPLES:
         return "speed", (
             f"speed {passage.speed:g} m/s would take {n} samples over the site "
             f"({site.length:g} m at {site.output_sample_rate:g} Hz), more than the "
             f"{MAX_PASSAGE_SAMPLES} a passage may have; the speed must be above {floor:.6g} m/s here"
         )
-    out = n * OUTPUT_BYTES_PER_SAMPLE
+    out = n * bytes_per_sample(cribs)
     if out > MAX_PASSAGE_OUTPUT_BYTES:
+        channels = f" with its {cribs} crib channels" if cribs else ""
         return "speed", (
-            f"speed {passage.speed:g} m/s would publish about {out} bytes ({n} samples), more "
-            f"than the {MAX_PASSAGE_OUTPUT_BYTES} bytes a passage may; XX"
+            f"speed {passage.speed:g} m/s would publish about {out} bytes ({n} samples"
+            f"{channels}), more than the {MAX_PASSAGE_OUTPUT_BYTES} bytes a passage may; the "
+            f"speed must be above {floor:.6g} m/s here"
         )
     return None
 
