@@ -97,6 +97,33 @@ class FlatFinding(MessageModel):
     )
 
 
+class ModelVersion(MessageModel):
+    """Which model made a diagnosis: the software, the track model and the site file.
+
+    Two diagnoses of one passage with the same ``key`` were made by the same model and
+    agree; a re-analysis (``railtwin reanalyse``) is keyed on (site, passage, key)."""
+
+    package: str = Field(
+        min_length=1, max_length=64, description="railtwin's version (the package's)"
+    )
+    track: str = Field(
+        min_length=1,
+        max_length=32,
+        description="the track model: the site's foundation kind (rigid, compliant, "
+        "discrete, slab)",
+    )
+    site: str = Field(
+        pattern=r"^[0-9a-f]{16}$",
+        description="fingerprint of the site file's physics and calibration (everything but "
+        "its description): the first 16 hex digits of the SHA-256 of its canonical JSON",
+    )
+
+    @property
+    def key(self) -> str:
+        """``<package>/<track>/<site>``: the version as one string (a database key)."""
+        return f"{self.package}/{self.track}/{self.site}"
+
+
 class Diagnosis(VersionedMessage):
     """The twin's verdict on one measured passage; in the fleet, (site_id, passage_id) is
     its id."""
@@ -156,6 +183,11 @@ class Diagnosis(VersionedMessage):
         "(null only in messages of producers older than schema 1.1)",
     )
     wall_time: NonNegative = Field(description="s spent diagnosing")
+    model_version: ModelVersion | None = Field(
+        default=None,
+        description="the model that made this diagnosis (package, track model, site "
+        "fingerprint); null only in messages of producers older than schema 1.3",
+    )
 
 
 class DiagnosisConfig(StrictModel):

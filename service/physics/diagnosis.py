@@ -22,6 +22,7 @@ from schemas.messages import WheelPassage
 from schemas.site import SiteConfig
 from service.physics import inputs as physics_inputs
 from service.physics.measurement_error import MeasurementError
+from service.physics.model_version import model_version
 from service.physics.site_physics import SitePhysics
 from sim_core.diagnosis.estimate import (
     DEFAULT_OPTIONS,
@@ -94,6 +95,7 @@ class Diagnoser:
         self.physics = physics if physics is not None else SitePhysics(site)
         cfg = site.diagnosis
         self.sensor = SensorModel(cfg.sensor_lowpass_hz, cfg.sensor_lowpass_order)
+        self.model_version = model_version(site)
         self.rails = RailTables(self.physics.base_rail)
         self.limits = Limits(
             cfg.watch_force,
@@ -342,6 +344,7 @@ class Diagnoser:
             fit_residual_ratio=ratio if math.isfinite(ratio) else None,
             explained=explained,
             wall_time=time.perf_counter() - start,
+            model_version=self.model_version,
         )
         return diag, FitCurves(t, t * est.speed, f, fitted, impacts, est)
 
