@@ -35,7 +35,7 @@ from sim_core.track.spec import TrackSpec
 MARGIN_BAYS = 3
 """Plain bays each side of the simulated stretch (convergence: docs/MODEL.md §8)."""
 
-ABSORBER_BAYS = 8
+ABSORBER_BAYS = 12
 """Absorbing bays beyond each margin."""
 
 ELEMENTS_PER_BAY = 16

@@ -31,12 +31,14 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import scipy.linalg as sla
 from numpy.typing import NDArray
 
-from sim_core.track.assembly import TrackMatrices, assemble
+from sim_core.track import store
+from sim_core.track.assembly import ABSORBER_RATE, TrackMatrices, assemble
 from sim_core.track.beam import (
     bubble_compliance,
     deflection_integral,
@@ -194,8 +196,46 @@ def _reduce(
         absorber_bays=absorber_bays,
         elements_per_bay=elements_per_bay,
     )
-    mats = assemble(track, lay)
-    return _modal(mats, cutoff, cribs)
+    name = store.key(
+        (track, x0, x1, cribs, cutoff, margin_bays, absorber_bays, elements_per_bay, ABSORBER_RATE)
+    )
+    kept = store.load(name)
+    if kept is not None and kept["x"].shape == lay.x.shape and np.array_equal(kept["x"], lay.x):
+        return _from_arrays(track, lay, cutoff, cribs, kept)
+    mt = _modal(assemble(track, lay), cutoff, cribs)
+    store.save(name, {f: getattr(mt, f) for f in _ARRAYS} | {"x": lay.x})
+    return mt
+
+
+_ARRAYS = (
+    "lam",
+    "weight",
+    "out_w",
+    "inp",
+    "elem_x",
+    "elem_len",
+    "elem_phi",
+    "resid",
+    "bubble",
+    "crib_lo",
+    "crib_hi",
+    "crib_rows",
+    "fe_compliance_blocks",
+)
+"""The fields of a ``ModalTrack`` that are arrays (what the disk cache keeps)."""
+
+
+def _from_arrays(
+    track: TrackSpec,
+    lay: TrackLayout,
+    cutoff: float,
+    cribs: tuple[Crib, ...],
+    a: dict[str, NDArray[Any]],
+) -> ModalTrack:
+    fields: dict[str, Any] = {f: a[f] for f in _ARRAYS}
+    return ModalTrack(
+        track=track, layout=lay, cutoff=cutoff, crib_ids=tuple(c.id for c in cribs), **fields
+    )
 
 
 def _modal(mats: TrackMatrices, cutoff: float, cribs: tuple[Crib, ...]) -> ModalTrack:
