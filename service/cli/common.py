@@ -39,6 +39,12 @@ class CommandError(Exception):
         self.report = report
 
 
+def one_line(text: str) -> str:
+    """A message of several lines (a report, a site file's fields) as one: its lines joined
+    with ``; ``."""
+    return "; ".join(part.strip() for part in text.splitlines() if part.strip())
+
+
 def read_json(path: str, source: str) -> Any:
     """The JSON document in ``path`` (``-``: stdin); ``CommandError`` (exit 2) naming
     ``source`` when it cannot be read or is not JSON."""

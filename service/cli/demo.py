@@ -28,11 +28,12 @@ import sys
 import tempfile
 from pathlib import Path
 
+from schemas.messages import TrainFile
 from schemas.site import SiteConfig
-from service.cli.common import SubParsers
+from service.cli.common import EXIT_USAGE, CommandError, SubParsers
+from service.cli.inputs import load_json_file, load_site_file
 from service.cli.service_process import ServiceProcess
 from service.recording.mcap_log import read_log
-from service.wire.site import load_site
 from service.wire.zenoh_session import free_tcp_endpoint
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -75,9 +76,10 @@ def register(subparsers: SubParsers) -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="railtwin demo", description=__doc__.split("\n")[0])
-    add_arguments(p)
-    return run(p.parse_args(argv))
+    """``railtwin demo ARGV``, with its error reporting."""
+    from service.cli.main import main as cli_main
+
+    return cli_main(["demo", *(sys.argv[1:] if argv is None else argv)])
 
 
 def diagnosed(site: SiteConfig) -> bool:
@@ -112,7 +114,10 @@ def channels_logged(mcap_files: list[Path], site_id: str) -> str | None:
 
 def run(args: argparse.Namespace) -> int:
     """Start the twin, stream the train and the measurements, print where the files are."""
-    site = load_site(args.site)
+    site = load_site_file(args.site, served=True)
+    load_json_file(args.train, "train", TrainFile)  # refused here, not by the feeder later
+    if args.recordings.exists() and not args.recordings.is_dir():
+        raise CommandError(f"--recordings {args.recordings}: not a directory", EXIT_USAGE)
     endpoint = free_tcp_endpoint()
     print(
         f"demo: starting railtwin serve for site {site.site_id!r} on {endpoint} "

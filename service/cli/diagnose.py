@@ -119,27 +119,14 @@ def _cores() -> int:
 
 
 def cmd_diagnose(args: argparse.Namespace) -> int:
-    from pydantic import ValidationError
-
     from schemas.messages import WheelPassage
-    from service.cli.common import read_json, write_atomic
+    from service.cli.common import write_atomic
+    from service.cli.inputs import load_json_file, load_site_file
     from service.clients.measured_io import MeasuredFileError, read_measured
     from service.physics.diagnosis import Diagnoser, IntegrationError, MeasurementError
-    from service.wire.site import SiteFileError, load_site
 
-    try:
-        site = load_site(args.site)
-    except (SiteFileError, OSError) as exc:
-        raise CommandError(f"invalid site {args.site}: {exc}", EXIT_USAGE) from None
-    raw = read_json(str(args.passage), str(args.passage))
-    try:
-        passage = WheelPassage.model_validate(raw)
-    except ValidationError as exc:
-        e = exc.errors()[0]
-        where = ".".join(map(str, e["loc"])) or "(whole)"
-        raise CommandError(
-            f"invalid passage {args.passage}: {where}: {e['msg']}", EXIT_USAGE
-        ) from None
+    site = load_site_file(args.site)
+    passage = load_json_file(args.passage, "passage", WheelPassage)
     try:
         measured = read_measured(args.measured, passage.passage_id)
     except MeasuredFileError as exc:

@@ -29,7 +29,8 @@ EXIT_HELP = """\
 exit status:
   0  success
   1  runtime failure (no fleet answered, the database or Zenoh could not be opened)
-  2  invalid arguments (e.g. a malformed wheel id or limits file)
+  2  invalid arguments (e.g. a malformed wheel id, limits file, Zenoh config or
+     --db that is not a SQLite database)
   3  (wheel) the fleet does not know this wheel
 """
 
@@ -143,9 +144,10 @@ def register(subparsers: Any) -> argparse.ArgumentParser:
 
 
 def _config(args: argparse.Namespace) -> Any:
-    from service.wire.zenoh_session import build_config
+    """The Zenoh config of the flags; CommandError (exit 2) naming a bad file or endpoint."""
+    from service.cli.inputs import zenoh_config
 
-    return build_config(
+    return zenoh_config(
         listen=args.listen, connect=args.connect, config_file=args.zenoh_config, mode=args.mode
     )
 
@@ -164,6 +166,7 @@ def parse_http(text: str) -> tuple[str, int]:
 def cmd_serve(args: argparse.Namespace) -> int:
     import zenoh
 
+    from service.cli.inputs import check_sqlite
     from service.fleet.limits import FleetLimits
     from service.fleet.service import FleetService
     from service.fleet.store import StoreError, open_store
@@ -179,6 +182,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
     except ValueError as exc:
         _err(str(exc))
         return EXIT_USAGE
+    config = _config(args)
+    check_sqlite(args.db)
     try:
         store = open_store(args.db)
     except StoreError as exc:
@@ -188,7 +193,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
     signal.signal(signal.SIGINT, lambda *_: stop.set())
     try:
-        session = zenoh.open(_config(args))
+        session = zenoh.open(config)
     except zenoh.ZError as exc:
         _err(f"cannot open the Zenoh session: {exc}")
         store.close()
@@ -233,7 +238,8 @@ def _get_one(args: argparse.Namespace, selector: str) -> tuple[str, Any] | None:
     """("ok"|"err", parsed JSON) of the first reply, None if nobody answered."""
     import zenoh
 
-    with zenoh.open(_config(args)) as session:
+    config = _config(args)
+    with zenoh.open(config) as session:
         deadline = time.monotonic() + args.timeout
         while True:  # a fresh session may need a moment to reach the router
             for reply in session.get(selector, timeout=max(0.5, deadline - time.monotonic())):
@@ -365,12 +371,10 @@ def wheel_table(doc: dict[str, Any]) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="railtwin")
-    sub = p.add_subparsers(dest="command", required=True)
-    register(sub)
-    args = p.parse_args(["fleet", *(sys.argv[1:] if argv is None else argv)])
-    code: int = args.func(args)
-    return code
+    """``railtwin fleet ARGV``, with its error reporting."""
+    from service.cli.main import main as cli_main
+
+    return cli_main(["fleet", *(sys.argv[1:] if argv is None else argv)])
 
 
 if __name__ == "__main__":

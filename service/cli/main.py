@@ -33,6 +33,7 @@ from service.cli.common import (
     EXIT_USAGE,
     CommandError,
     SubParsers,
+    one_line,
     read_json,
     write_atomic,
 )
@@ -262,7 +263,7 @@ def _report_one_line(exc: CommandError, args: argparse.Namespace, tag: str, sour
     if getattr(args, "format", "table") == "json" and exc.report is not None:
         sys.stderr.write(exc.report.model_dump_json() + "\n")
         return
-    text = "; ".join(part.strip() for part in str(exc).splitlines() if part.strip())
+    text = one_line(str(exc))
     if source not in text:
         text = f"{source}: {text}"
     sys.stderr.write(f"{PROG} {args.command}: {tag} {text}\n")

@@ -8,7 +8,8 @@ writes a finished file that ``make_reader``, Foxglove and ``railtwin replay`` re
 Give the run's ``-inputs.journal`` too: every input the twin received is in it (written
 before the input was queued), so the inputs the recorder never wrote are added back.
 Prints one line per damaged input saying where it was cut. Exit status: 0 written,
-1 nothing could be salvaged or the output could not be written, 2 bad arguments.
+1 nothing could be salvaged or the output could not be written, 2 bad arguments or an
+input that is not a log (nor a journal).
 """
 
 from __future__ import annotations
@@ -41,11 +42,11 @@ def register(subparsers: SubParsers) -> None:
 
 
 def cmd_recover(args: argparse.Namespace) -> int:
+    from service.cli.inputs import check_logs
     from service.recording.mcap_recover import recover
 
+    check_logs(args.logs, journals=True)
     for p in args.logs:
-        if not p.is_file():
-            raise CommandError(f"no such file: {p}", EXIT_USAGE)
         if p.resolve() == args.out.resolve():
             raise CommandError(f"--out {args.out} would overwrite its own input", EXIT_USAGE)
     try:

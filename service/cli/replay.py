@@ -17,10 +17,11 @@ import argparse
 import sys
 from pathlib import Path
 
-from service.cli.common import SubParsers
+from service.cli.common import EXIT_USAGE, CommandError, SubParsers
+from service.cli.inputs import check_logs, zenoh_config
 from service.clients.replay import ReplayError, ReplayPlan, plan_replay, read_logs, replay
 from service.recording.mcap_recover import RecoveryReport
-from service.wire.zenoh_session import DEFAULT_ENDPOINT, build_config, open_session
+from service.wire.zenoh_session import DEFAULT_ENDPOINT, open_session
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -132,10 +133,9 @@ def describe(plan: ReplayPlan, include_rejected: bool) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    missing = [p for p in args.logs if not p.is_file()]
-    if missing:
-        print(f"railtwin replay: no such file: {missing[0]}", file=sys.stderr)
-        return 2
+    check_logs(args.logs, journals=False)
+    connect = args.connect or ([] if (args.zenoh_config or args.listen) else [DEFAULT_ENDPOINT])
+    cfg = zenoh_config(listen=args.listen, connect=connect, config_file=args.zenoh_config)
     report = RecoveryReport()
     messages = read_logs(args.logs, report)
     for cut in report.damaged:
@@ -143,14 +143,11 @@ def run(args: argparse.Namespace) -> int:
     try:
         plan = plan_replay(messages, site_id=args.site, include_rejected=args.include_rejected)
     except ReplayError as exc:
-        print(f"railtwin replay: {exc}", file=sys.stderr)
-        return 2
+        raise CommandError(str(exc), EXIT_USAGE) from None
     for line in describe(plan, args.include_rejected):
         print(f"railtwin replay: {line}", flush=True)
     if args.dry_run:
         return 0
-    connect = args.connect or ([] if (args.zenoh_config or args.listen) else [DEFAULT_ENDPOINT])
-    cfg = build_config(listen=args.listen, connect=connect, config_file=args.zenoh_config)
     with open_session(cfg) as session:
         n = replay(session, plan, rate=args.rate, match_timeout=args.wait)
     print(
@@ -162,9 +159,10 @@ def run(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="railtwin replay", description=__doc__.split("\n")[0])
-    add_arguments(p)
-    return run(p.parse_args(argv))
+    """``railtwin replay ARGV``, with its error reporting."""
+    from service.cli.main import main as cli_main
+
+    return cli_main(["replay", *(sys.argv[1:] if argv is None else argv)])
 
 
 if __name__ == "__main__":

@@ -24,7 +24,8 @@ from typing import Any
 
 import zenoh
 
-from service.wire.zenoh_session import DEFAULT_ENDPOINT, build_config, open_session
+from service.cli.inputs import zenoh_config
+from service.wire.zenoh_session import DEFAULT_ENDPOINT, open_session
 
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
@@ -64,13 +65,9 @@ def register(subparsers: Any) -> None:
 
 def run(args: argparse.Namespace) -> int:
     listen = args.listen or ([] if args.zenoh_config else [DEFAULT_ENDPOINT])
-    try:
-        cfg = build_config(
-            listen=listen, connect=args.connect, config_file=args.zenoh_config, mode="router"
-        )
-    except (zenoh.ZError, OSError, ValueError) as exc:
-        print(f"railtwin router: invalid configuration: {exc}", file=sys.stderr)
-        return 2
+    cfg = zenoh_config(
+        listen=listen, connect=args.connect, config_file=args.zenoh_config, mode="router"
+    )
     stop = threading.Event()
 
     def on_signal(signum: int, _frame: Any) -> None:
@@ -102,9 +99,10 @@ def run(args: argparse.Namespace) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="railtwin router", description=__doc__)
-    add_arguments(p)
-    return run(p.parse_args(argv))
+    """``railtwin router ARGV``, with its error reporting."""
+    from service.cli.main import main as cli_main
+
+    return cli_main(["router", *(sys.argv[1:] if argv is None else argv)])
 
 
 if __name__ == "__main__":

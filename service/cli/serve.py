@@ -15,7 +15,6 @@ from __future__ import annotations
 import argparse
 import logging
 import os
-import re
 import secrets
 import signal
 import sqlite3
@@ -29,7 +28,8 @@ import zenoh
 
 from schemas.site import SiteConfig
 from service.cli import logs
-from service.cli.common import SubParsers
+from service.cli.common import CommandError, SubParsers
+from service.cli.inputs import load_site_file, zenoh_config, zenoh_message
 from service.physics.local import LocalPhysics
 from service.physics.port import PhysicsPort
 from service.physics.rail_store import RailStore, StateMismatchError, physics_fingerprint
@@ -39,9 +39,8 @@ from service.recording.mcap_log import DEFAULT_MAX_BYTES, DEFAULT_MAX_SECONDS
 from service.recording.recorder_process import ProcessRecorder, RecordingPlan
 from service.twin.diagnoses import DiagnosisStore
 from service.twin.twin import Twin
-from service.wire.limits import DEFAULT_PASSAGE_BUDGET, site_problem
-from service.wire.site import SiteFileError, load_site
-from service.wire.zenoh_session import DEFAULT_ENDPOINT, build_config, open_session
+from service.wire.limits import DEFAULT_PASSAGE_BUDGET
+from service.wire.zenoh_session import DEFAULT_ENDPOINT, open_session
 
 log = logging.getLogger("railtwin.serve")
 
@@ -195,12 +194,6 @@ def register(subparsers: SubParsers) -> argparse.ArgumentParser:
     return p
 
 
-def one_line(exc: BaseException) -> str:
-    """The first sentence of a Zenoh error, without its source locations."""
-    text = re.sub(r"\s+at /\S+", "", str(exc)).replace("\n", " ")
-    return text[:300]
-
-
 def package_version() -> str:
     from importlib.metadata import PackageNotFoundError, version
 
@@ -246,14 +239,18 @@ def run(args: argparse.Namespace) -> int:
 
 def _run(args: argparse.Namespace, stop: threading.Event, pools: list[PhysicsPool]) -> int:
     try:
-        site = load_site(args.site)
-    except SiteFileError as exc:
+        site = load_site_file(args.site, served=True)
+        listen = args.listen or ([] if (args.zenoh_config or args.connect) else [DEFAULT_ENDPOINT])
+        cfg = zenoh_config(
+            listen=listen,
+            connect=args.connect,
+            config_file=args.zenoh_config,
+            multicast_scouting=args.multicast_scouting,
+            mode=args.mode,
+        )
+    except CommandError as exc:
         log.error("%s", exc)
-        return 2
-    problem = site_problem(site)
-    if problem is not None:
-        log.error(f"{args.site}: invalid site: {problem}")
-        return 2
+        return exc.code
     if not args.keep_gb >= 0:
         log.error("--keep-gb must be >= 0")
         return 2
@@ -266,14 +263,6 @@ def _run(args: argparse.Namespace, stop: threading.Event, pools: list[PhysicsPoo
     if args.mode == "client" and not (args.connect or args.zenoh_config):
         log.error("--mode client needs --connect ENDPOINT (a router)")
         return 2
-    listen = args.listen or ([] if (args.zenoh_config or args.connect) else [DEFAULT_ENDPOINT])
-    cfg = build_config(
-        listen=listen,
-        connect=args.connect,
-        config_file=args.zenoh_config,
-        multicast_scouting=args.multicast_scouting,
-        mode=args.mode,
-    )
     if args.workers < 1:
         log.error("--workers must be >= 1")
         return 2
@@ -391,7 +380,7 @@ def _serve(
         try:
             session = open_session(cfg)
         except zenoh.ZError as exc:
-            log.error(f"cannot open the Zenoh session: {one_line(exc)}")
+            log.error(f"cannot open the Zenoh session: {zenoh_message(exc)}")
             if recorder is not None:
                 recorder.close()
             return 1

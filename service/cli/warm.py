@@ -41,6 +41,8 @@ from pathlib import Path
 from typing import Any
 
 import sim_core  # noqa: F401  (first: it points numba's cache at the venv's, sim_core/__init__)
+from service.cli.common import CommandError
+from service.cli.inputs import load_site_file
 
 ROOT = Path(__file__).resolve().parents[2]
 DEFAULT_SITES = (ROOT / "examples" / "site.toml", ROOT / "examples" / "site_compliant.toml")
@@ -288,10 +290,12 @@ def handler(args: argparse.Namespace) -> int:
         print("railtwin warm: --jobs must be >= 1", file=sys.stderr)
         return 2
     sites: list[Path] = args.site or list(DEFAULT_SITES)
-    for site in sites:
-        if not site.is_file():
-            print(f"railtwin warm: no site file {site}", file=sys.stderr)
-            return 2
+    for site in sites:  # refused now, not after minutes of compiling
+        try:
+            load_site_file(site, served=True)
+        except CommandError as exc:
+            print(f"railtwin warm: {exc}", file=sys.stderr)
+            return exc.code
     cache = os.environ.get("NUMBA_CACHE_DIR", "numba's default (__pycache__ beside the sources)")
     print(
         f"railtwin warm: compiling the physics into {cache} ({args.jobs} process"

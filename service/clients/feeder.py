@@ -224,12 +224,23 @@ def main(argv: list[str] | None = None) -> int:
     return run(p.parse_args(argv))
 
 
+def endpoints(args: argparse.Namespace) -> list[str]:
+    """The endpoints to connect to: ``--connect``, else the default one (none with a
+    ``--zenoh-config``: its own)."""
+    return list(args.connect) or ([] if args.zenoh_config else [DEFAULT_ENDPOINT])
+
+
 def run(args: argparse.Namespace) -> int:
     """Stream the train, print a line per result; 0 when every passage got its result."""
-    train = load_train(args.train)
+    cfg = build_config(connect=endpoints(args), config_file=args.zenoh_config)
+    return feed(args, load_train(args.train), cfg)
+
+
+def feed(args: argparse.Namespace, train: TrainFile, cfg: zenoh.Config) -> int:
+    """``run`` with the train read and the Zenoh config made (``railtwin feed`` reads and
+    checks them itself)."""
     keys = SiteKeys(args.site)
-    connect = args.connect or ([] if args.zenoh_config else [DEFAULT_ENDPOINT])
-    cfg = build_config(connect=connect, config_file=args.zenoh_config)
+    connect = endpoints(args)
     printed = threading.Lock()
 
     def show(r: PassageResult) -> None:

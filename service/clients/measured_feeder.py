@@ -26,7 +26,8 @@ from pathlib import Path
 import zenoh
 
 from schemas.diagnosis import Diagnosis, MeasuredPassage
-from schemas.messages import ServiceError
+from schemas.messages import ServiceError, TrainFile
+from schemas.site import SiteConfig
 from service.clients.feeder import load_train, wait_matching
 from service.clients.synthesize import measure, passage_tread
 from service.wire.encoding import json_encoding
@@ -83,16 +84,30 @@ def main(argv: list[str] | None = None) -> int:
 
 def run(a: argparse.Namespace) -> int:
     """Make (or load) the measurements and publish them, or only save them."""
-    site = load_site(a.site_file)
-    train = load_train(a.train)
-    keys = SiteKeys(site.site_id)
-    offsets = {w.passage.passage_id: w.offset + site.length / w.passage.speed for w in train.wheels}
-    payloads: list[MeasuredPassage] = []
+    saved = None
     if a.load is not None:
-        payloads = [
+        saved = [
             MeasuredPassage.model_validate(d)
             for d in json.loads(a.load.read_text(encoding="utf-8"))
         ]
+    cfg = build_config(connect=a.connect or [DEFAULT_ENDPOINT])
+    return feed_measured(a, load_site(a.site_file), load_train(a.train), saved, cfg)
+
+
+def feed_measured(
+    a: argparse.Namespace,
+    site: SiteConfig,
+    train: TrainFile,
+    saved: list[MeasuredPassage] | None,
+    cfg: zenoh.Config,
+) -> int:
+    """``run`` with the files read (``saved``: those of ``--load``) and the Zenoh config made
+    (``railtwin feed-measured`` reads and checks them itself)."""
+    keys = SiteKeys(site.site_id)
+    offsets = {w.passage.passage_id: w.offset + site.length / w.passage.speed for w in train.wheels}
+    payloads: list[MeasuredPassage] = []
+    if saved is not None:
+        payloads = list(saved)
     else:
         from service.physics.diagnosis import Diagnoser  # the physics, only when it is used
 
@@ -139,8 +154,7 @@ def run(a: argparse.Namespace) -> int:
             if len(got) == len(payloads):
                 done.set()
 
-    connect = a.connect or [DEFAULT_ENDPOINT]
-    with open_session(build_config(connect=connect)) as session:
+    with open_session(cfg) as session:
         sub = session.declare_subscriber(keys.all_outputs, on_output)
         pub = session.declare_publisher(
             keys.measured,

@@ -101,12 +101,18 @@ def main(argv: list[str] | None = None) -> int:
 
 def run(a: argparse.Namespace) -> int:
     """Write the synthetic measured force of one passage as CSV (t_s,force_N)."""
+    site = load_site(a.site)
+    passage = WheelPassage.model_validate_json(a.passage.read_text(encoding="utf-8"))
+    return write_measurement(a, site, passage)
+
+
+def write_measurement(a: argparse.Namespace, site: SiteConfig, passage: WheelPassage) -> int:
+    """``run`` with the site and the passage read (``railtwin synthesize`` reads and checks
+    them itself)."""
     import numpy as np
 
     from sim_core.diagnosis.forward import Flat
 
-    site = load_site(a.site)
-    passage = WheelPassage.model_validate_json(a.passage.read_text(encoding="utf-8"))
     R = passage.radius
     tread: Tread | None = passage_tread(passage)
     if a.flat == "flat":

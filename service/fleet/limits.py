@@ -57,8 +57,10 @@ class FleetLimits:
         """The ``[diagnosis]`` limits of a site file (ValueError with the reason)."""
         try:
             data = tomllib.loads(path.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        except (OSError, UnicodeDecodeError) as exc:
             raise ValueError(f"{path}: cannot read: {exc}") from None
+        except tomllib.TOMLDecodeError as exc:
+            raise ValueError(f"{path}: not valid TOML: {exc}") from None
         table = data.get("diagnosis", {})
         if not isinstance(table, dict):
             raise ValueError(f"{path}: [diagnosis] must be a table")

@@ -34,7 +34,7 @@ from pathlib import Path
 from mcap.exceptions import McapError
 from mcap.records import Channel, Message, Schema
 from mcap.stream_reader import StreamReader
-from mcap.writer import CompressionType, Writer
+from mcap.writer import MCAP0_MAGIC, CompressionType, Writer
 from pydantic import BaseModel
 
 from schemas.diagnosis import MeasuredPassage
@@ -46,10 +46,11 @@ from schemas.messages import (
     encoding_schema,
     is_encoding_of,
 )
+from service.recording.input_journal import MAGIC as JOURNAL_MAGIC
 from service.recording.input_journal import read_journal
 from service.recording.mcap_log import LoggedMessage
 
-__all__ = ["RecoveryReport", "read_any", "recover", "salvage"]
+__all__ = ["RecoveryReport", "log_problem", "read_any", "recover", "salvage"]
 
 
 @dataclass
@@ -60,6 +61,20 @@ class RecoveryReport:
     files: int = 0
     from_journal: int = 0
     damaged: list[str] = field(default_factory=list)
+
+
+def log_problem(path: Path, *, journals: bool = True) -> str | None:
+    """Why ``path`` is no log to read (not MCAP; not an input journal, when ``journals`` and
+    it is named ``*.journal``), or None. A log cut anywhere, even in its first bytes, is one:
+    ``salvage`` reads what it holds."""
+    journal = journals and path.suffix == ".journal"
+    magic = JOURNAL_MAGIC if journal else MCAP0_MAGIC
+    with path.open("rb") as f:
+        head = f.read(len(magic))
+    if head == magic[: len(head)]:
+        return None
+    what = "a railtwin input journal" if journal else "an MCAP log"
+    return f"not {what} (it starts with {head!r}, not {magic!r})"
 
 
 def salvage(path: Path, report: RecoveryReport | None = None) -> Iterator[LoggedMessage]:
