@@ -153,3 +153,56 @@ def test_impossible_cribs_name_the_field() -> None:
     with pytest.raises(TrackError, match="sleeper_spacing"):
         TrackSpec.slab(sleeper_spacing=-0.6, first_sleeper=0.0, pad=Support(1e8))
     assert math.isinf(RailSection(beam="euler").shear_stiffness)
+
+
+def _flat_on_track(contact: str, passes: int) -> dict[str, object]:
+    """A 60 mm ideal flat landing 0.5 m on, 30 m/s, on the ROSE-like ballasted track."""
+    return {
+        "wheel": {
+            "mass": 700.0,
+            "load": 85000.0,
+            "radius": 0.46,
+            "outline": {"kind": "flat", "length": 0.06},
+            "phase": 2 * math.pi - 0.5 / 0.46,
+        },
+        "rail": {"kind": "flat"},
+        "material": {"youngs_modulus": 2.14e11, "poisson_ratio": 0.3, "yield_stress": 8.0e8},
+        "contact": contact,
+        "foundation": {
+            "kind": "discrete",
+            "sleeper_spacing": 0.6,
+            "first_sleeper": 0.3,
+            "pad": {"stiffness": 2.0e8, "damping": 3.0e4},
+            "sleeper_mass": 150.0,
+            "ballast": {"stiffness": 1.2e8, "damping": 8.0e4},
+        },
+        "speed": 30.0,
+        "duration": 0.03,
+        "sample_rate": 20000.0,
+        "passes": passes,
+    }
+
+
+@pytest.mark.parametrize("contact", ["johnson", "hertz_plastic"])
+def test_plastic_laws_on_the_track_locate_yield_and_dent(contact: str) -> None:
+    """The flat's impact yields the rail: yield and unyield are located between the return of
+    contact and the next loss, the Hertzian–perfectly plastic force stays on its plateau
+    F_Y, and its dents make the next wheel's rail (multi-pass)."""
+    from schemas.scenario import Scenario
+    from service.physics.scenario_runner import run_scenario
+
+    passes = 2 if contact == "hertz_plastic" else 1
+    res = run_scenario(Scenario.model_validate(_flat_on_track(contact, passes)))
+    kinds = [t.kind for t in res.transitions]
+    assert kinds[:4] == ["loss", "contact", "yield", "unyield"]
+    times = [t.t for t in res.transitions]
+    assert times == sorted(times)
+    f_y = res.derived.yield_force
+    assert f_y is not None
+    if contact == "hertz_plastic":
+        assert res.summary.peak_force == pytest.approx(f_y, rel=1e-4)
+        assert res.passes_summary is not None
+        assert res.passes_summary[0].max_dent > 1e-6
+        assert res.rail_after is not None and len(res.rail_after.x) > 2
+    else:
+        assert res.summary.peak_force > f_y

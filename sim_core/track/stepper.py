@@ -291,6 +291,58 @@ def solve_force(dstar: float, kappa: float, wh: Wheel) -> float:
     return f
 
 
+@numba.njit(cache=True, inline="always")
+def _wheel_at(y: float, v: float, fa: float, st: float, wh: Wheel) -> float:
+    """The wheel's height after ``st`` without the step's end force."""
+    return y + st * v - wh.load * st * st / (2.0 * wh.mass) + st * st * fa / (6.0 * wh.mass)
+
+
+@numba.njit(cache=True)
+def trial(
+    md: Modes,
+    tab: Table,
+    wh: Wheel,
+    co: NDArray[np.float64],
+    nsh: NDArray[np.float64],
+    zr: NDArray[np.float64],
+    zi: NDArray[np.float64],
+    ur: NDArray[np.float64],
+    ui: NDArray[np.float64],
+    pr: NDArray[np.float64],
+    pi: NDArray[np.float64],
+    gr: NDArray[np.float64],
+    gi: NDArray[np.float64],
+    qr: NDArray[np.float64],
+    qi: NDArray[np.float64],
+    t: float,
+    st: float,
+    y: float,
+    v: float,
+    fa: float,
+    he: int,
+    ht: int,
+) -> tuple[float, float, float, int, int]:
+    """A step of length ``st`` (coefficients ``co``) up to its end force: fills (pr, pi), (gr, gi),
+    (qr, qi); returns (δ*, κ, the wheel's height without the end force, element, table hints)."""
+    xb = wh.speed * (t + st)
+    he = element_at(xb, md.ex, he)
+    xi = shapes(xb, he, md, nsh)
+    w0, bc = predict(he, nsh, md, co, zr, zi, ur, ui, pr, pi, gr, gi, qr, qi)
+    ypred = _wheel_at(y, v, fa, st, wh)
+    ckb, _, ht = table_eval(tab.x, tab.y, tab.sl, tab.sr, tab.period, xb, ht)
+    kappa = st * st / (3.0 * wh.mass) - bc + residual(he, xi, nsh, md)
+    return -ypred + ckb + w0, kappa, ypred, he, ht
+
+
+@numba.njit(cache=True, inline="always")
+def _end_delta(dstar: float, kappa: float, contact: bool, wh: Wheel) -> tuple[float, float]:
+    """(F_b, δ_b) at a step's end: the implicit force in contact, none in flight."""
+    if not contact or dstar <= 0.0:
+        return 0.0, dstar
+    f = solve_force(dstar, kappa, wh)
+    return f, dstar - kappa * f
+
+
 @numba.njit(cache=True)
 def run(
     md: Modes,
@@ -312,7 +364,13 @@ def run(
     dents: NDArray[np.float64],
     extrema: NDArray[np.float64],
 ) -> tuple[int, int]:
-    """Advance from t0 through every sample time; fill the outputs; return (transitions, dents) written."""
+    """Advance from t0 through every sample time; fill the outputs; return (transitions, dents) written.
+
+    Each step first tries its whole length; if the contact is lost or regained, or δ enters or
+    leaves the plastic range, on the way, the event's instant is located on the step length
+    (Illinois false position on the same trial step), the step ends there and the rest of it
+    follows as a step of its own.
+    """
     m = md.lam_r.size
     nc = md.crib_lo.size
     co_n = np.empty((6, m))
@@ -330,6 +388,8 @@ def run(
     he = 0
     ht = 0
     plastic_law = wh.law != HERTZ
+    up = wh.d_y + wh.hyst
+    down = wh.d_y - wh.hyst
     v = v0
     y = y0
     fa = f0
@@ -384,50 +444,85 @@ def run(
                     coefficients(md, remaining, co_t)
                     co = co_t
                 st = remaining
-                xb = wh.speed * (t + st)
-                he = element_at(xb, md.ex, he)
-                xi = shapes(xb, he, md, nsh)
-                w0, bc = predict(he, nsh, md, co, zr, zi, ur, ui, pr, pi, gr, gi, qr, qi)
-                rb = residual(he, xi, nsh, md)
-                ypred = (
-                    y
-                    + st * v
-                    - wh.load * st * st / (2.0 * wh.mass)
-                    + st * st * fa / (6.0 * wh.mass)
+                dstar, kappa, ypred, he, ht = trial(
+                    md,
+                    tab,
+                    wh,
+                    co,
+                    nsh,
+                    zr,
+                    zi,
+                    ur,
+                    ui,
+                    pr,
+                    pi,
+                    gr,
+                    gi,
+                    qr,
+                    qi,
+                    t,
+                    st,
+                    y,
+                    v,
+                    fa,
+                    he,
+                    ht,
                 )
-                ckb, _, ht = table_eval(tab.x, tab.y, tab.sl, tab.sr, tab.period, xb, ht)
-                dstar = -ypred + ckb + w0
-                kappa = st * st / (3.0 * wh.mass) - bc + rb
+                fb, delta_b = _end_delta(dstar, kappa, contact, wh)
+                # the first event on the way, as a function g of the step length rising through 0
                 event = -1
-                if contact and dstar <= 0.0:
+                level = 0.0
+                if contact and plastic_law and not plastic and delta_b > up:
+                    event = EV_YIELD
+                    level = up
+                elif contact and plastic and delta_b < down:
+                    event = EV_UNYIELD
+                    level = down
+                elif contact and dstar <= 0.0:
                     event = EV_LOSS
                 elif (not contact) and dstar > 0.0:
                     event = EV_CONTACT
                 if event >= 0:
-                    # the root of the force-free δ* on the step length: Illinois false position
-                    sgn = -1.0 if event == EV_LOSS else 1.0
+                    # g = ±(δ − level) with the force (yield, unyield) or ±δ* without it (loss, contact)
+                    sgn = 1.0 if event in (EV_YIELD, EV_CONTACT) else -1.0
+                    with_force = event in (EV_YIELD, EV_UNYIELD)
                     lo = 0.0
                     hi = st
-                    g_lo = -abs(delta_a) - 1e-300
-                    g_hi = sgn * dstar
+                    g_lo = min(sgn * (delta_a - level), 0.0) - 1e-300
+                    g_hi = sgn * ((delta_b if with_force else dstar) - level)
                     side = 0
                     for _it in range(100):
                         s = lo - g_lo * (hi - lo) / (g_hi - g_lo)
                         if not (lo < s < hi):
                             s = 0.5 * (lo + hi)
                         coefficients(md, s, co_t)
-                        xs = wh.speed * (t + s)
-                        he = element_at(xs, md.ex, he)
-                        shapes(xs, he, md, nsh)
-                        ws, _ = predict(he, nsh, md, co_t, zr, zi, ur, ui, pr, pi, gr, gi, qr, qi)
-                        yps = (
-                            y
-                            + s * v
-                            - wh.load * s * s / (2.0 * wh.mass)
-                            + s * s * fa / (6.0 * wh.mass)
+                        ds, ks, _, he, ht = trial(
+                            md,
+                            tab,
+                            wh,
+                            co_t,
+                            nsh,
+                            zr,
+                            zi,
+                            ur,
+                            ui,
+                            pr,
+                            pi,
+                            gr,
+                            gi,
+                            qr,
+                            qi,
+                            t,
+                            s,
+                            y,
+                            v,
+                            fa,
+                            he,
+                            ht,
                         )
-                        cks, _, ht = table_eval(tab.x, tab.y, tab.sl, tab.sr, tab.period, xs, ht)
-                        gs = sgn * (-yps + cks + ws)
+                        if with_force:
+                            _, ds = _end_delta(ds, ks, True, wh)
+                        gs = sgn * (ds - level)
                         if gs > 0.0:
                             hi = s
                             g_hi = gs
@@ -444,23 +539,33 @@ def run(
                             break
                     st = hi
                     coefficients(md, st, co_t)
-                    xb = wh.speed * (t + st)
-                    he = element_at(xb, md.ex, he)
-                    xi = shapes(xb, he, md, nsh)
-                    w0, bc = predict(he, nsh, md, co_t, zr, zi, ur, ui, pr, pi, gr, gi, qr, qi)
-                    ypred = (
-                        y
-                        + st * v
-                        - wh.load * st * st / (2.0 * wh.mass)
-                        + st * st * fa / (6.0 * wh.mass)
+                    dstar, kappa, ypred, he, ht = trial(
+                        md,
+                        tab,
+                        wh,
+                        co_t,
+                        nsh,
+                        zr,
+                        zi,
+                        ur,
+                        ui,
+                        pr,
+                        pi,
+                        gr,
+                        gi,
+                        qr,
+                        qi,
+                        t,
+                        st,
+                        y,
+                        v,
+                        fa,
+                        he,
+                        ht,
                     )
-                    ckb, _, ht = table_eval(tab.x, tab.y, tab.sl, tab.sr, tab.period, xb, ht)
-                    dstar = -ypred + ckb + w0
-                fb = 0.0
-                delta_b = dstar
-                if contact and event < 0:
-                    fb = solve_force(dstar, kappa, wh)
-                    delta_b = dstar - kappa * fb
+                    fb, delta_b = _end_delta(dstar, kappa, contact and with_force, wh)
+                    if not with_force:
+                        delta_b = 0.0
                 commit(fb, zr, zi, ur, ui, pr, pi, gr, gi, qr, qi)
                 y = ypred + st * st * fb / (3.0 * wh.mass)
                 v = v - wh.load * st / wh.mass + st * (fa + fb) / (2.0 * wh.mass)
@@ -468,31 +573,16 @@ def run(
                     t_flight += st
                 t_new = t + st
                 if event >= 0:
-                    contact = event == EV_CONTACT
-                    delta_b = 0.0
+                    if event in (EV_LOSS, EV_CONTACT):
+                        contact = event == EV_CONTACT
+                    else:
+                        plastic = event == EV_YIELD
                     if n_tr < transitions.shape[0]:
                         transitions[n_tr, 0] = t_new
                         transitions[n_tr, 1] = event
                         n_tr += 1
-                if plastic_law:
-                    up = wh.d_y + wh.hyst
-                    down = wh.d_y - wh.hyst
-                    kind = -1
-                    fr = 1.0
-                    if contact and (not plastic) and delta_b > up:
-                        kind = EV_YIELD
-                        fr = (up - delta_a) / (delta_b - delta_a)
-                    elif plastic and (delta_b < down or not contact):
-                        kind = EV_UNYIELD
-                        fr = (delta_a - down) / (delta_a - delta_b) if delta_b < down else 1.0
-                    if kind >= 0:
-                        plastic = kind == EV_YIELD
-                        if n_tr < transitions.shape[0]:
-                            transitions[n_tr, 0] = t + min(max(fr, 0.0), 1.0) * st
-                            transitions[n_tr, 1] = kind
-                            n_tr += 1
                 if track_dents and contact and delta_b > wh.d_y and n_dent < dents.shape[0]:
-                    cx, _, _, _ = linear_at(tab.x, tab.cx, tab.period, xb, ht, False)
+                    cx, _, _, _ = linear_at(tab.x, tab.cx, tab.period, wh.speed * t_new, ht, False)
                     dents[n_dent, 0] = t_new
                     dents[n_dent, 1] = cx
                     dents[n_dent, 2] = delta_b
