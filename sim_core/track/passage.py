@@ -44,7 +44,7 @@ if TYPE_CHECKING:
     from sim_core.constraint.table import ConstraintTable
     from sim_core.passage import PassageOutput, PassageSpec
 
-STEP = 1.0e-5
+STEP = 2.0e-5
 """Longest step, s: the contact force is linear in time over a step (convergence: docs/MODEL.md §8)."""
 
 FEATURE_STEPS = 2.0
