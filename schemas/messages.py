@@ -72,7 +72,8 @@ MESSAGE_SCHEMA_VERSION: Final = "1.3"
 ``PassageResult.wheel``; ``Diagnosis.wheel``/``timestamp``; unknown fields ignored.
 1.2: the site file's ``discrete``/``slab`` foundations and ``detector``;
 ``PassageResult.channels``.
-1.3 (issue 27): ``Diagnosis.model_version`` (re-analysis keyed on it)."""
+1.3 (issue 27): ``Diagnosis.model_version`` (re-analysis keyed on it);
+``Health.passages_without_wheel``."""
 
 MESSAGE_MAJOR: Final = 1
 """The major version this build reads."""
@@ -453,6 +454,12 @@ class Health(VersionedMessage):
     uptime: NonNegative = Field(description="s")
     passages_received: int = Field(ge=0, description="messages received on the passage key")
     passages_done: int = Field(ge=0, description="passages simulated and published")
+    passages_without_wheel: int = Field(
+        default=0,
+        ge=0,
+        description="valid passages taken without a wheel (no wheel, or its fields misplaced, "
+        "e.g. vehicle_id at the top level): their diagnoses are filed under no wheel (1.3)",
+    )
     errors: int = Field(ge=0, description="ServiceErrors published")
     queue_depth: int = Field(ge=0, description="passages waiting to be simulated")
     queue_capacity: int = Field(ge=1)

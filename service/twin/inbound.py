@@ -15,6 +15,8 @@ class Inbound:
     received_mono: float
     journal_ticket: int | None = None
     """Of its journal record (``InputJournal.append``): released once the MCAP holds it."""
+    sender: str | None = None
+    """The Zenoh session that published it, when its publisher says (``source_info``)."""
 
     @property
     def received_at(self) -> float:

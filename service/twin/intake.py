@@ -83,7 +83,9 @@ class Intake:
                 passage_id=limits.peek_passage_id(head),
             )
             return
-        item = Inbound(key, sample.payload.to_bytes(), received_ns, received_mono, ticket)
+        item = Inbound(
+            key, sample.payload.to_bytes(), received_ns, received_mono, ticket, sender_of(sample)
+        )
         try:
             self.queue.put_nowait(item)
         except queue.Full:
@@ -94,6 +96,12 @@ class Intake:
                 f"{what} dropped: {self.capacity} inputs already waiting",
                 passage_id=limits.peek_passage_id(item.payload),
             )
+
+
+def sender_of(sample: zenoh.Sample) -> str | None:
+    """The Zenoh id of the session that published ``sample``, if its publisher gave it."""
+    info = sample.source_info
+    return None if info is None else str(info.source_id.zid)
 
 
 def refused_unread(output: Output, item: Inbound, measured: bool) -> bool:

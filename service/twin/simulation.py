@@ -30,6 +30,7 @@ from service.twin.intake import refused_unread
 from service.twin.kept_passages import KeptPassages
 from service.twin.output import Output
 from service.twin.pacer import Pacer
+from service.twin.unknown_fields import UnknownFields
 from service.wire import limits
 from service.wire.encoding import Quantity, series_json
 
@@ -69,6 +70,9 @@ class Simulation:
         self.chunk_period = chunk_period
         self.pacer = pacer
         self.done = 0
+        self.without_wheel = 0
+        """Passages taken without a wheel (no ``wheel``, or its fields misplaced)."""
+        self.unknown_fields = UnknownFields()
         self._inflight = threading.Semaphore(2 * physics.size)
         self._ordered: queue.Queue[_Entry | _Stop] = queue.Queue()
         self._publisher = (
@@ -126,6 +130,9 @@ class Simulation:
         out.log_input(item, passage)
         if self._already_applied(item, passage):
             return None
+        self.unknown_fields.warn(passage.passage_id, item.payload, item.sender)
+        if passage.wheel is None:
+            self.without_wheel += 1
         self.passages.add(passage.passage_id, passage, len(item.payload))
         return passage
 

@@ -249,6 +249,7 @@ class Twin:
             uptime=time.monotonic() - self._started_mono,
             passages_received=self.intake.passages_received,
             passages_done=self.passages_done,
+            passages_without_wheel=self.simulation.without_wheel,
             errors=self.output.errors,
             queue_depth=self.intake.queue.qsize(),
             queue_capacity=self.intake.capacity,
