@@ -30,7 +30,8 @@ SERVICE_MAY_IMPORT: dict[str, set[str]] = {
     "twin": {"twin", "wire", "recording", "physics.port"},
     "clients": {"clients", "wire", "recording", "physics"},
     "fleet": {"fleet", "wire"},
-    "cli": {"cli", "wire", "recording", "physics", "twin", "clients", "fleet"},
+    "distributed": {"distributed", "wire", "recording", "physics", "clients", "fleet"},
+    "cli": {"cli", "wire", "recording", "physics", "twin", "clients", "fleet", "distributed"},
 }
 """Subsystems of ``service/`` and what each may import of the others (``physics.port``: only
 that module of ``physics``)."""

@@ -92,6 +92,7 @@ DIAGNOSE = ["diagnose", "--site", str(SITE)]
 FEED_MEASURED = ["feed-measured", "--site-file", str(SITE), "--train", str(TRAIN)]
 SYNTHESIZE = ["synthesize", "--site", str(SITE), "--passage", "{good_passage.json}"]
 OUT = ["--out", "o.csv"]
+REANALYSE = ["--site", str(SITE), "--out", "o"]
 
 # (id, argv with {file} placeholders, exit status, what the line names besides the file)
 CASES: list[tuple[str, list[str], int, tuple[str, ...]]] = [
@@ -280,6 +281,14 @@ CASES: list[tuple[str, list[str], int, tuple[str, ...]]] = [
         ["fleet", "alarms", "--zenoh-config", "{zenoh.json5}"],
         2,
         ("bogus",),
+    ),
+    ("reanalyse-malformed", ["reanalyse", "{bad.mcap}", *REANALYSE], 2, ("not an MCAP log",)),
+    ("reanalyse-invalid", ["reanalyse", "{empty.mcap}", *REANALYSE], 2, ("no site's inputs",)),
+    (
+        "reanalyse-site-invalid",
+        ["reanalyse", "{empty.mcap}", "--site", "{site.toml}", "--out", "o"],
+        2,
+        ("contact",),
     ),
     ("schema-name", ["schema", "Nope"], 2, ("no schema named 'Nope'",)),
     ("schema-out-file", ["schema", "--out", "{out_file}"], 1, ("cannot write",)),

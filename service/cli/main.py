@@ -519,6 +519,12 @@ def _router(sp: SubParsers) -> None:
     router.register(sp)
 
 
+def _reanalyse(sp: SubParsers) -> None:
+    from service.cli import reanalyse
+
+    reanalyse.register(sp)
+
+
 def _fleet(sp: SubParsers) -> None:
     from service.cli import fleet
 
@@ -537,6 +543,7 @@ SERVICE_COMMANDS: dict[str, Callable[[SubParsers], None]] = {
     "warm": _warm,
     "router": _router,
     "fleet": _fleet,
+    "reanalyse": _reanalyse,
 }
 """The service's subcommands, by name, each registered by a function that imports its module
 when called: a command line that names one (``railtwin diagnose ...``) imports only that

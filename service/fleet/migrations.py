@@ -21,6 +21,10 @@ Version history:
    published). The alarm table is an outbox: a service that stopped between storing an
    alarm and publishing it publishes it when it starts again. Alarms stored before this
    version count as published at their ``raised_at``.
+5. ``reanalysis``: the diagnoses of ``railtwin reanalyse``, one row per (site_id,
+   passage_id, model_version): a re-analysis killed and started again stores nothing
+   twice, and one model's verdicts can be compared with another's. A passage the new
+   model could not diagnose has a row too, with its ``error`` (and no verdict).
 """
 
 from __future__ import annotations
@@ -137,6 +141,25 @@ MIGRATIONS: tuple[Migration, ...] = (
             "ALTER TABLE alarm ADD COLUMN published_at DOUBLE PRECISION",
             "UPDATE alarm SET published_at = raised_at",
             "CREATE INDEX alarm_unpublished ON alarm (published_at, raised_at)",
+        ),
+    ),
+    Migration(
+        5,
+        "re-analysed diagnoses keyed by (site_id, passage_id, model_version)",
+        (
+            """CREATE TABLE reanalysis (
+            site_id TEXT NOT NULL,
+            passage_id TEXT NOT NULL,
+            model_version TEXT NOT NULL,
+            wheel_id TEXT,
+            timestamp DOUBLE PRECISION,
+            verdict TEXT,
+            error TEXT,
+            stored_at DOUBLE PRECISION NOT NULL,
+            body TEXT,
+            PRIMARY KEY (site_id, passage_id, model_version)
+        )""",
+            "CREATE INDEX reanalysis_version ON reanalysis (site_id, model_version)",
         ),
     ),
 )

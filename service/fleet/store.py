@@ -10,7 +10,7 @@ its queryables and the dashboard share it).
 
     >>> s = open_store(":memory:")
     >>> s.schema_version(), s.count()
-    (3, 0)
+    (5, 0)
     >>> s.close()
 """
 
@@ -84,6 +84,24 @@ ON CONFLICT (wheel_id) DO UPDATE SET
 
 class StoreError(RuntimeError):
     """The database cannot be opened or used (message says which and why)."""
+
+
+@dataclass(frozen=True)
+class Reanalysed:
+    """One passage re-analysed with one model version: its diagnosis (``body``, the
+    Diagnosis JSON, and ``verdict``) or why it could not be diagnosed (``error``)."""
+
+    site_id: str
+    passage_id: str
+    model_version: str
+    wheel_id: str | None
+    timestamp: float | None
+    verdict: str | None
+    error: str | None
+    body: str | None
+
+
+_REANALYSIS_COLS = "site_id, passage_id, model_version, wheel_id, timestamp, verdict, error, body"
 
 
 @dataclass(frozen=True)
@@ -256,6 +274,69 @@ class Store:
                 "WHERE wheel_id IN (SELECT wheel_id FROM wheel_state)",
             )
             self._exec(cur, "DROP TABLE wheel_state")
+
+    def add_reanalysed(self, rows: Sequence[Reanalysed], entries: Sequence[Entry] = ()) -> int:
+        """Store re-analysed passages in one transaction, each once per (site, passage,
+        model version); ``entries`` (their diagnoses) go to the history as ``insert`` puts
+        them, where the passage has none yet. Returns how many rows were new."""
+        now = time.time()
+        new = 0
+        with self._transaction() as cur:
+            for r in rows:
+                new += self._exec(
+                    cur,
+                    f"INSERT INTO reanalysis ({_REANALYSIS_COLS}, stored_at) VALUES "
+                    "(?, ?, ?, ?, ?, ?, ?, ?, ?) ON CONFLICT (site_id, passage_id, "
+                    "model_version) DO NOTHING",
+                    (
+                        r.site_id,
+                        r.passage_id,
+                        r.model_version,
+                        r.wheel_id,
+                        r.timestamp,
+                        r.verdict,
+                        r.error,
+                        r.body,
+                        now,
+                    ),
+                )
+        if entries:
+            self.insert(entries)
+        return new
+
+    def reanalysed(self, site_id: str, model_version: str) -> list[Reanalysed]:
+        """Every passage of ``site_id`` re-analysed with ``model_version``."""
+        rows = self._rows(
+            f"SELECT {_REANALYSIS_COLS} FROM reanalysis WHERE site_id = ? AND model_version = ? "
+            "ORDER BY passage_id",
+            (site_id, model_version),
+        )
+        return [Reanalysed(*r) for r in rows]
+
+    def verdicts_before(self, site_id: str, model_version: str) -> dict[str, tuple[str, str]]:
+        """passage id → (verdict, model version) of the latest diagnosis of each passage of
+        ``site_id`` made with another model than ``model_version``: re-analysed, else the
+        fleet's own (``"unversioned"`` when it predates schema 1.3)."""
+        out: dict[str, tuple[str, str]] = {}
+        for pid, verdict, body in self._rows(
+            "SELECT passage_id, verdict, body FROM diagnosis WHERE site_id = ?", (site_id,)
+        ):
+            try:
+                version = json.loads(body).get("model_version") or {}
+            except (ValueError, AttributeError):
+                version = {}
+            key = "/".join(str(version.get(k)) for k in ("package", "track", "site"))
+            if not version:
+                key = "unversioned"
+            if key != model_version:
+                out[pid] = (verdict, key)
+        for pid, verdict, version in self._rows(
+            "SELECT passage_id, verdict, model_version FROM reanalysis WHERE site_id = ? AND "
+            "model_version <> ? AND verdict IS NOT NULL ORDER BY stored_at",
+            (site_id, model_version),
+        ):
+            out[pid] = (verdict, version)
+        return out
 
     def set_speed(self, site_id: str, passage_id: str, speed: float) -> bool:
         """Fill a stored diagnosis's speed (from its PassageResult); True if one was."""
