@@ -59,7 +59,8 @@ from sim_core.integrate_types import (
     table_of,
 )
 from sim_core.integrator import integrate, jump_allowance
-from sim_core.track.spec import Crib, TrackSpec
+from sim_core.track.spec import Crib
+from sim_core.under_rail import UnderRail
 
 RESOLUTION_STEP = 3.0
 """A step in contact advances the wheel by at most this many ``table.resolution``: the
@@ -119,6 +120,35 @@ class Foundation:
     def is_compliant(self) -> bool:
         return self.kind == "compliant"
 
+    # --- sim_core.under_rail.UnderRail ---
+
+    @property
+    def carries_detector(self) -> bool:
+        """A lumped foundation has no rail to put gauges on."""
+        return False
+
+    def prepare(self, x0: float, x1: float, cribs: tuple[Crib, ...] = ()) -> None:
+        """Nothing to prepare: the lumped equations need no precomputation."""
+
+    def simulate(
+        self,
+        table: ConstraintTable,
+        spec: PassageSpec,
+        *,
+        track_dents: bool | None,
+        dent_spacing: float,
+        max_steps: int,
+    ) -> PassageOutput:
+        """The compiled adaptive integrator over the 4-state (wheel, foundation mass) system."""
+        return _simulate_lumped(
+            table,
+            spec,
+            self,
+            track_dents=track_dents,
+            dent_spacing=dent_spacing,
+            max_steps=max_steps,
+        )
+
 
 @dataclass(frozen=True)
 class InitialState:
@@ -152,7 +182,8 @@ class PassageSpec:
     duration: float
     sample_rate: float
     contact: ContactModel
-    foundation: Foundation | TrackSpec = field(default_factory=Foundation.rigid)
+    foundation: UnderRail = field(default_factory=Foundation.rigid)
+    """What lies under the rail (``sim_core.under_rail``): rigid, compliant, discrete or slab."""
     initial: InitialState | None = None
     rtol: float = 1e-9
     t0: float = 0.0
@@ -168,7 +199,7 @@ class PassageSpec:
             raise ValueError(f"passage: t0 must be finite, got {self.t0!r}")
         if self.rtol < 1e-14:
             raise ValueError(f"passage: rtol {self.rtol} is below what double precision can honour")
-        if self.cribs and not isinstance(self.foundation, TrackSpec):
+        if self.cribs and not self.foundation.carries_detector:
             raise ValueError("passage: cribs need a rail on supports (a discrete or slab track)")
 
 
@@ -284,22 +315,28 @@ def simulate_passage(
     records the largest indentation at each contact point while plastic, every
     ``dent_spacing`` metres of wheel travel (default ``DENT_SPACING``).
     """
-    if isinstance(spec.foundation, TrackSpec):
-        from sim_core.track.passage import simulate_on_track
+    return spec.foundation.simulate(
+        table,
+        spec,
+        track_dents=track_dents,
+        dent_spacing=DENT_SPACING if dent_spacing is None else dent_spacing,
+        max_steps=max_steps,
+    )
 
-        return simulate_on_track(
-            table,
-            spec,
-            spec.foundation,
-            track_dents=track_dents,
-            dent_spacing=DENT_SPACING if dent_spacing is None else dent_spacing,
-        )
+
+def _simulate_lumped(
+    table: ConstraintTable,
+    spec: PassageSpec,
+    foundation: Foundation,
+    *,
+    track_dents: bool | None,
+    dent_spacing: float,
+    max_steps: int,
+) -> PassageOutput:
+    """``simulate_passage`` on a rigid or compliant foundation (``Foundation.simulate``)."""
     law = spec.contact.law
     if track_dents is None:
         track_dents = law == ContactLaw.HERTZ_PLASTIC
-    if dent_spacing is None:
-        dent_spacing = DENT_SPACING
-    foundation = spec.foundation
     v = spec.speed
     t0 = spec.t0
     t1 = t0 + spec.duration

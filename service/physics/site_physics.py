@@ -33,7 +33,6 @@ from sim_core.passage import PassageOutput, PassageSpec, simulate_passage
 from sim_core.rail import RailProfile
 from sim_core.rail_pass import ConstraintTables, DentedRail, TableChoice, rail_pass
 from sim_core.summary import summarize
-from sim_core.track.spec import TrackSpec
 from sim_core.wheel import WheelOutline
 
 RAIL_STATE_SPACING = 1e-3
@@ -120,12 +119,8 @@ class SitePhysics:
         DentedRail.of(self.base_rail, 0.0, self.site.length).pressed(
             np.array([0.5 * self.site.length]), np.array([-1e-5]), probe.radius
         )
-        if isinstance(self.foundation, TrackSpec):
-            # the site's whole track and cribs reduced to modes once (sim_core keeps it):
-            # seconds that the first wheel would otherwise wait
-            from sim_core.track.modal import reduce_track
-
-            reduce_track(self.foundation, 0.0, self.site.length, self.cribs)
+        # what every wheel over the site needs, once (a rail on supports: its modes)
+        self.foundation.prepare(0.0, self.site.length, self.cribs)
         return time.perf_counter() - start
 
     def simulate(self, passage: WheelPassage) -> PassageResult:

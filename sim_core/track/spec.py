@@ -19,7 +19,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
+
+if TYPE_CHECKING:
+    from sim_core.constraint.table import ConstraintTable
+    from sim_core.passage import PassageOutput, PassageSpec
 
 BeamKind = Literal["timoshenko", "euler"]
 """The rail's beam theory: Timoshenko (shear and rotary inertia) or Euler–Bernoulli."""
@@ -169,6 +173,36 @@ class TrackSpec:
         rail: RailSection | None = None,
     ) -> TrackSpec:
         return cls("slab", sleeper_spacing, first_sleeper, pad, rail or RailSection())
+
+    # --- sim_core.under_rail.UnderRail ---
+
+    @property
+    def carries_detector(self) -> bool:
+        """The rail is modelled: crib channels can be read off it."""
+        return True
+
+    def prepare(self, x0: float, x1: float, cribs: tuple[Crib, ...] = ()) -> None:
+        """Reduce the track of a wheel from x0 to x1 with ``cribs`` to its modes (kept in memory
+        and on disk): seconds the first passage would otherwise wait."""
+        from sim_core.track.modal import reduce_track
+
+        reduce_track(self, x0, x1, cribs)
+
+    def simulate(
+        self,
+        table: ConstraintTable,
+        spec: PassageSpec,
+        *,
+        track_dents: bool | None,
+        dent_spacing: float,
+        max_steps: int,
+    ) -> PassageOutput:
+        """The exact-mode stepper over the reduced track (``sim_core.track.passage``)."""
+        from sim_core.track.passage import simulate_on_track
+
+        return simulate_on_track(
+            table, spec, self, track_dents=track_dents, dent_spacing=dent_spacing
+        )
 
     def sleepers_between(self, x0: float, x1: float) -> list[float]:
         """Sleeper positions in [x0, x1]."""
