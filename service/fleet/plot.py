@@ -13,12 +13,19 @@ import math
 import time
 from typing import Any
 
+from service.fleet.plot_layout import Box, free_row, spread, text_box, time_ticks
 from service.fleet.trend import DAY, Z95
 
 W, H = 760, 250
 LEFT, RIGHT, TOP, BOTTOM = 60, 20, 28, 36
 MAX_FORECAST = 365 * DAY
 LIMIT_COLOURS = {"watch": "#c9a400", "inspect": "#e07000", "remove": "#c00000"}
+LABEL_ROW = 15.0
+"""Baseline to baseline of two labels that must not touch (11 px text), px."""
+HALO = 'stroke="white" stroke-width="3" paint-order="stroke" '
+"""A label in the plot stays legible over the lines it crosses."""
+CROSSING_ROWS = tuple(TOP + 12 + LABEL_ROW * k for k in range(8))
+"""Where a forecast crossing's label may go, the first free row from the top."""
 
 
 def _ticks(lo: float, hi: float, n: int = 5) -> list[float]:
@@ -83,25 +90,30 @@ def panel(doc: dict[str, Any], quantity: str, title: str, scale: float, unit: st
             f'<text x="{LEFT - 6}" y="{y + 4:.1f}" font-size="11" text-anchor="end">'
             f"{v:g}</text>"
         )
-    for t in _ticks(t0 / DAY, t1 / DAY, 6):
-        x = px(t * DAY)
-        label = time.strftime("%m-%d", time.gmtime(t * DAY))
+    for t, label in time_ticks(t0, t1, W - LEFT - RIGHT):
+        x = px(t)
         out.append(
-            f'<line x1="{x:.1f}" y1="{H - BOTTOM}" x2="{x:.1f}" y2="{H - BOTTOM + 4}" '
-            f'stroke="#888"/><text x="{x:.1f}" y="{H - BOTTOM + 16}" font-size="11" '
-            f'text-anchor="middle">{label}</text>'
+            f'<line class="xtick" data-t="{t:.0f}" x1="{x:.1f}" y1="{H - BOTTOM}" x2="{x:.1f}" '
+            f'y2="{H - BOTTOM + 4}" stroke="#888"/><text class="xtick-label" x="{x:.1f}" '
+            f'y="{H - BOTTOM + 16}" font-size="11" text-anchor="middle">{label}</text>'
         )
     out.append(
         f'<text x="{W - RIGHT}" y="{H - 4}" font-size="11" text-anchor="end">date (UTC)</text>'
     )
-    for lv, lim in limits.items():
-        y = py(lim)
+    texts = {lv: f"{lv} {lim * scale:g}" for lv, lim in limits.items()}
+    at = spread([py(lim) - 4 for lim in limits.values()], LABEL_ROW, TOP + 12, H - BOTTOM - 4)
+    taken: list[Box] = []  # the labels placed in the plot, that the next ones must miss
+    labels: list[str] = []  # drawn last, over the lines and points
+    for (lv, lim), y in zip(limits.items(), at, strict=True):
+        taken.append(text_box(W - RIGHT - 4, y, texts[lv], "end"))
         out.append(
-            f'<line class="limit" data-level="{lv}" x1="{LEFT}" y1="{y:.1f}" '
-            f'x2="{W - RIGHT}" y2="{y:.1f}" stroke="{LIMIT_COLOURS[lv]}" '
-            f'stroke-dasharray="6 4"/><text x="{W - RIGHT - 4}" y="{y - 4:.1f}" '
-            f'font-size="11" text-anchor="end" fill="{LIMIT_COLOURS[lv]}">{lv} '
-            f"{lim * scale:g}</text>"
+            f'<line class="limit" data-level="{lv}" x1="{LEFT}" y1="{py(lim):.1f}" '
+            f'x2="{W - RIGHT}" y2="{py(lim):.1f}" stroke="{LIMIT_COLOURS[lv]}" '
+            f'stroke-dasharray="6 4"/>'
+        )
+        labels.append(
+            f'<text class="limit-label" data-level="{lv}" x="{W - RIGHT - 4}" y="{y:.1f}" '
+            f'font-size="11" text-anchor="end" {HALO}fill="{LIMIT_COLOURS[lv]}">{texts[lv]}</text>'
         )
     if trend is not None:
         ta, tb = trend["t_first"], t1 - pad
@@ -131,14 +143,18 @@ def panel(doc: dict[str, Any], quantity: str, title: str, scale: float, unit: st
             if c["status"] == "forecast" and c["at"] is not None and c["at"] <= tb:
                 x = px(c["at"])
                 right = x > W - RIGHT - 140  # near the right edge: label to the left
+                text = f"{c['level']} {time.strftime('%Y-%m-%d', time.gmtime(c['at']))}"
+                lx, anchor = (x - 3, "end") if right else (x + 3, "start")
+                y = free_row(lx, text, anchor, CROSSING_ROWS, taken)
+                taken.append(text_box(lx, y, text, anchor))
+                colour = LIMIT_COLOURS[c["level"]]
                 out.append(
                     f'<line class="crossing" x1="{x:.1f}" y1="{TOP}" x2="{x:.1f}" '
-                    f'y2="{H - BOTTOM}" stroke="{LIMIT_COLOURS[c["level"]]}" '
-                    f'stroke-width="1"/><text x="{x - 3 if right else x + 3:.1f}" '
-                    f'y="{TOP + 24 if right else TOP + 12}" font-size="11" '
-                    f'text-anchor="{"end" if right else "start"}" '
-                    f'fill="{LIMIT_COLOURS[c["level"]]}">{c["level"]} '
-                    f"{time.strftime('%Y-%m-%d', time.gmtime(c['at']))}</text>"
+                    f'y2="{H - BOTTOM}" stroke="{colour}" stroke-width="1"/>'
+                )
+                labels.append(
+                    f'<text class="crossing-label" x="{lx:.1f}" y="{y:.1f}" font-size="11" '
+                    f'text-anchor="{anchor}" {HALO}fill="{colour}">{text}</text>'
                 )
     for t, v, lo, hi in pts:
         x = px(t)
@@ -154,6 +170,7 @@ def panel(doc: dict[str, Any], quantity: str, title: str, scale: float, unit: st
         )
     if not pts:
         out.append(f'<text x="{W / 2}" y="{H / 2}" text-anchor="middle" fill="#888">no data</text>')
+    out += labels
     out.append("</svg>")
     return "\n".join(out)
 
