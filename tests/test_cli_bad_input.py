@@ -290,6 +290,7 @@ CASES: list[tuple[str, list[str], int, tuple[str, ...]]] = [
         2,
         ("contact",),
     ),
+    ("study-malformed", ["study", "{bad.toml}", "--out", "o.parquet"], 2, ("not valid TOML",)),
     ("schema-name", ["schema", "Nope"], 2, ("no schema named 'Nope'",)),
     ("schema-out-file", ["schema", "--out", "{out_file}"], 1, ("cannot write",)),
     ("figures-out-file", ["figures", "--out", "{out_file}"], 1, ("cannot create",)),

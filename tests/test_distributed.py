@@ -236,3 +236,41 @@ def test_bad_input_is_one_line_and_exit_2(case: str, tmp_path: Path, logs: Path)
         want = "foundation is 'discrete'"
     code, message = _cli(str(log), "--site", site, *extra)
     assert code == 2 and want in message and "\n" not in message, message
+
+
+def test_a_study_goes_on_past_a_failing_case(
+    tmp_path: Path, cluster: tuple[object, ClusterInfo]
+) -> None:
+    import pyarrow.parquet as pq
+
+    from service.distributed.study import StudyError, load_spec, run_study, table_of
+
+    spec = tmp_path / "study.toml"
+    base = ROOT / "examples" / "ideal_flat.json"
+    spec.write_text(
+        f'base = "{base}"\n[grid]\nspeed = [10.0, -5.0, 20.0]\npasses = [1, 2]\n'
+        'duration = [0.01]\n[random]\ndraws = 1\nseed = 3\nfields = { "wheel.load" = '
+        "{ low = 38e3, high = 40e3 } }\n",
+        encoding="utf-8",
+    )
+    base_doc, cases = load_spec(spec)
+    assert len(cases) == 6 and all(38e3 <= c["wheel.load"] <= 40e3 for c in cases)
+    assert load_spec(spec)[1] == cases  # the seed makes the draws
+    client, info = cluster
+    rows, _, tasks = run_study(client, info, base_doc, cases, batch=2)
+    assert tasks == 3
+    params = sorted({k for c in cases for k in c})
+    pq.write_table(table_of(rows, params), tmp_path / "t.parquet")
+    table = pq.read_table(tmp_path / "t.parquet").to_pylist()
+    assert [r["case"] for r in table] == list(range(6))
+    failed = [r for r in table if r["error"] is not None]
+    assert {r["speed"] for r in failed} == {-5.0} and len(failed) == 2
+    assert "speed" in failed[0]["error"] and failed[0]["peak_force"] is None
+    ok = [r for r in table if r["error"] is None]
+    assert all(r["peak_force"] > 0 for r in ok) and {r["passes"] for r in ok} == {1, 2}
+    spec.write_text(f'base = "{base}"\n[grid]\n"wheel.colour" = [1]\n', encoding="utf-8")
+    with pytest.raises(StudyError, match=r"'wheel\.colour' is not a field"):
+        load_spec(spec)
+    spec.write_text(f'base = "{base}"\n[grids]\nspeed = [1.0]\n', encoding="utf-8")
+    with pytest.raises(StudyError, match="grids"):
+        load_spec(spec)

@@ -525,6 +525,12 @@ def _reanalyse(sp: SubParsers) -> None:
     reanalyse.register(sp)
 
 
+def _study(sp: SubParsers) -> None:
+    from service.cli import study
+
+    study.register(sp)
+
+
 def _fleet(sp: SubParsers) -> None:
     from service.cli import fleet
 
@@ -544,6 +550,7 @@ SERVICE_COMMANDS: dict[str, Callable[[SubParsers], None]] = {
     "router": _router,
     "fleet": _fleet,
     "reanalyse": _reanalyse,
+    "study": _study,
 }
 """The service's subcommands, by name, each registered by a function that imports its module
 when called: a command line that names one (``railtwin diagnose ...``) imports only that
