@@ -4,6 +4,7 @@
 #   make warm     compile the physics into numba's cache, 2 processes (make venv runs it)
 #   make demo     start the twin on loopback, stream a sample train through it, print a line per wheel
 #   make bench    run the benchmarks (benchmarks/run_all.py)
+#   make bench-reanalyse  re-analyse a generated 10 000-passage archive on 2 Dask workers (minutes)
 #   make figures  draw the paper's figures into figures/
 #   make soak     20 000-passage burst (memory must plateau), kill -9 mid-stream, recover (minutes)
 #   make validate the wheel-flat diagnosis: independent wide set + own generator, railtwin diagnose timed (~3 min)
@@ -30,7 +31,7 @@ WARMED := $(NUMBA_CACHE_DIR)/.warmed-stamp
 export RERUN_ANALYTICS ?= 0
 export PIP_DISABLE_PIP_VERSION_CHECK := 1
 
-.PHONY: help venv warm test lint ruff mypy pytest demo bench figures validate validate-track soak clean fleet-demo fleet-bench
+.PHONY: help venv warm test lint ruff mypy pytest demo bench bench-reanalyse figures validate validate-track soak clean fleet-demo fleet-bench
 
 help:
 	@sed -n '2,15p' Makefile | sed 's/^# \{0,1\}//'
@@ -82,6 +83,9 @@ demo: $(WARMED)
 
 bench: $(WARMED)
 	$(BIN)/python -m benchmarks.run_all
+
+bench-reanalyse: $(WARMED)
+	$(BIN)/python -m benchmarks.dask_bench --archive 10000
 
 fleet-demo: $(WARMED)
 	$(BIN)/python -m service.cli.fleet_demo

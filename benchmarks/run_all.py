@@ -8,7 +8,9 @@ Sections, each failing soft (the error is printed and the next one runs):
 2. ``constraint``: ``benchmarks.constraint_bench.run()`` if that module exists;
    ``track``: ``benchmarks.track_bench`` (the discrete site case against real time);
 3. ``service``: ``benchmarks/service_bench.py`` in a child process (it starts the
-   streaming service in a process of its own) under a timeout.
+   streaming service in a process of its own) under a timeout;
+4. ``dask``: ``benchmarks.dask_bench`` (re-analysis on 1 and 2 Dask workers, per-task
+   overhead; the 10 000-passage archive is ``make bench-reanalyse``).
 
 Exit code 0 if every present section ran, 1 otherwise. The machine's load
 average is recorded around each section: the numbers are wall times on a
@@ -122,6 +124,13 @@ def section_service(quick: bool, wheels: int, timeout: float) -> tuple[str, Any]
     return text, {"command": cmd[1:], "stdout": out, "table_rows": rows}
 
 
+def section_dask(quick: bool) -> tuple[str, Any]:
+    from benchmarks import dask_bench
+
+    res = dask_bench.run(quick=quick)
+    return str(res["markdown"]), res
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description="run every railtwin benchmark")
     ap.add_argument(
@@ -130,7 +139,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--service-wheels", type=int, default=SERVICE_WHEELS)
     ap.add_argument("--service-timeout", type=float, default=SERVICE_TIMEOUT)
     ap.add_argument(
-        "--skip", nargs="*", default=[], choices=("core", "constraint", "track", "service")
+        "--skip", nargs="*", default=[], choices=("core", "constraint", "track", "service", "dask")
     )
     ap.add_argument("--out", type=Path, default=RESULTS)
     a = ap.parse_args(argv)
@@ -151,6 +160,11 @@ def main(argv: list[str] | None = None) -> int:
             "service",
             "Streaming service (benchmarks/service_bench.py)",
             lambda: section_service(a.quick, a.service_wheels, a.service_timeout),
+        ),
+        (
+            "dask",
+            "Re-analysis on a Dask cluster (benchmarks.dask_bench)",
+            lambda: section_dask(a.quick),
         ),
     ]
     t_all = time.perf_counter()
