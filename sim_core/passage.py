@@ -34,8 +34,9 @@ from numpy.typing import NDArray
 
 from sim_core.constraint.table import ConstraintTable
 from sim_core.contact_laws import ContactLaw, ContactModel
-from sim_core.integrate_model import curvature_bound
-from sim_core.integrate_types import (
+from sim_core.integrate.loop import integrate, jump_allowance
+from sim_core.integrate.model import curvature_bound
+from sim_core.integrate.types import (
     MODE_NAMES,
     S_CONTACT,
     S_DELTA,
@@ -58,7 +59,6 @@ from sim_core.integrate_types import (
     TransitionKind,
     table_of,
 )
-from sim_core.integrator import integrate, jump_allowance
 from sim_core.track.spec import Crib
 from sim_core.under_rail import UnderRail
 
@@ -79,7 +79,7 @@ YIELD_HYSTERESIS``) and 25× below the dent lattice's 66 nm chord error. Against
 of the records to take and press."""
 
 TRANSITION_KINDS: tuple[TransitionKind, ...] = tuple(e.label for e in Event)
-"""Names of the transition codes 0..3 the integrator reports (``integrate_types.Event``)."""
+"""Names of the transition codes 0..3 the integrator reports (``sim_core.integrate.types.Event``)."""
 
 
 FoundationKind = Literal["rigid", "compliant"]

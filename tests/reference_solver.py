@@ -1,6 +1,6 @@
 """An independent, slow reference solver for the equations of motion of MODEL.md §4.
 
-It shares nothing with ``sim_core.integrator``: SciPy's ``solve_ivp`` (DOP853 or
+It shares nothing with ``sim_core.integrate.loop``: SciPy's ``solve_ivp`` (DOP853 or
 Radau) integrates one *mode* at a time — flight (F = 0), elastic contact (Hertz),
 plastic contact (Johnson's cavity model or the Hertzian–perfectly plastic
 plateau) — with terminal event functions that have a direction:

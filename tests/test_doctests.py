@@ -21,7 +21,9 @@ def test_every_module_is_listed() -> None:
         "constraint",
         "constraint.table",
         "passage",
-        "integrator",
+        "integrate.loop",
+        "integrate.tableau",
+        "track.modal",
         "dents",
     ):
         assert f"sim_core.{name}" in MODULES

@@ -525,7 +525,7 @@ def test_parameters_are_typed_and_codes_are_not_floats() -> None:
     """The contact law is an int and the switches are bools in the compiled signature."""
     import numba
 
-    from sim_core.integrate_types import Params
+    from sim_core.integrate.types import Params
 
     par = Params.build(**{name: 1 for name in Params._fields})
     ty = numba.typeof(par)
@@ -541,8 +541,8 @@ def test_parameters_are_typed_and_codes_are_not_floats() -> None:
 def test_one_event_numbering() -> None:
     """Transition names, the event enum and the event functions use the same codes:
     each event function rises through 0 where its event happens."""
-    from sim_core.integrate_events import event_value
-    from sim_core.integrate_types import Event, Params
+    from sim_core.integrate.events import event_value
+    from sim_core.integrate.types import Event, Params
     from sim_core.passage import TRANSITION_KINDS
 
     assert TRANSITION_KINDS == ("loss", "contact", "yield", "unyield")
@@ -563,9 +563,9 @@ def test_one_event_numbering() -> None:
 
 def test_root_finder_locates_events_and_extrema_on_a_step() -> None:
     """find_root on a dense output with a known δ(t): an event (first g > 0) and an extremum."""
-    from sim_core.integrate_dense import fill_dense
-    from sim_core.integrate_events import extremum_in, first_crossing, locate_event
-    from sim_core.integrate_types import EV_LOSS, F_RATE, Params, table_of
+    from sim_core.integrate.dense import fill_dense
+    from sim_core.integrate.events import extremum_in, first_crossing, locate_event
+    from sim_core.integrate.types import EV_LOSS, F_RATE, Params, table_of
 
     # flat rail: δ = -y_C. A parabola y_C = -d + a t²/2 - ... with v0 < 0 has a minimum
     # of y_C (maximum of δ) at t = -v0/a and loses contact where y_C = 0.

@@ -25,8 +25,8 @@ from sim_core import paper
 from sim_core.constraint import tabulate_constraint
 from sim_core.constraint.table import ConstraintTable
 from sim_core.contact_laws import ContactLaw
-from sim_core.integrate_types import Params
-from sim_core.integrator import jump_allowance
+from sim_core.integrate.loop import jump_allowance
+from sim_core.integrate.types import Params
 from sim_core.passage import PassageOutput, PassageSpec, simulate_passage
 from sim_core.wheel import WheelOutline
 from tests import reference_solver as rs

@@ -1,6 +1,6 @@
 """The certified bounds that let the integrator skip per-step searches hold on brute force.
 
-``integrate_records.step_extrema`` locates an interior extremum of δ only when
+``sim_core.integrate.records.step_extrema`` locates an interior extremum of δ only when
 ``interior_reach`` (|δ''|max·h²/8 from ``curvature_of_delta``, plus a margin) says it
 could beat a record. Here random contact steps on the issue's rough sampled rail
 (0.5 mm samples, 10 µm rms, a round wheel at 160 km/h) are built as the integrator
@@ -22,10 +22,10 @@ from numpy.typing import NDArray
 from sim_core import paper
 from sim_core.constraint import tabulate_constraint
 from sim_core.contact_laws import HERTZ, ContactLaw
-from sim_core.integrate_dense import fill_dense
-from sim_core.integrate_model import curvature_bound, delta_rate, jerks_and_delta, slope_at
-from sim_core.integrate_records import curvature_of_delta, interior_reach
-from sim_core.integrate_types import ELASTIC, Params, Table, table_of
+from sim_core.integrate.dense import fill_dense
+from sim_core.integrate.model import curvature_bound, delta_rate, jerks_and_delta, slope_at
+from sim_core.integrate.records import curvature_of_delta, interior_reach
+from sim_core.integrate.types import ELASTIC, Params, Table, table_of
 from sim_core.wheel import WheelOutline
 from tests.stored_rails import site_rail_0p3
 

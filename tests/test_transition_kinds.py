@@ -6,7 +6,7 @@ from __future__ import annotations
 from typing import get_args
 
 from schemas.result import TransitionKind as ContractKind
-from sim_core.integrate_types import Event, TransitionKind
+from sim_core.integrate.types import Event, TransitionKind
 from sim_core.passage import TRANSITION_KINDS
 
 

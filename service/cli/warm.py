@@ -6,7 +6,7 @@
 A first start otherwise compiles the whole physics in the service's one worker
 process, one function after the other (minutes on a cold cache). The compiled
 code falls into groups that share few compiled functions: the integrator
-(``sim_core.integrator.integrate`` and the kernels it calls), the constraint's
+(``sim_core.integrate.loop.integrate`` and the kernels it calls), the constraint's
 tabulation paths (``warm_up_constraint``) and the stepper of a rail on sleepers
 (``sim_core.track``, ~30 s). This command compiles them in ``--jobs`` processes at once
 (default: one per group, or one per CPU if fewer; ``GROUPS`` says who compiles what), each
@@ -149,12 +149,12 @@ def _warm_integrator_kernels() -> None:
     import numba
     import numpy as np
 
-    from sim_core import integrate_events as ev
-    from sim_core import integrate_records as rec
-    from sim_core import integrator as it
     from sim_core.constraint import flat_constraint
-    from sim_core.integrate_model import force_rate
-    from sim_core.integrate_types import Params, Work, table_of
+    from sim_core.integrate import events as ev
+    from sim_core.integrate import loop as it
+    from sim_core.integrate import records as rec
+    from sim_core.integrate.model import force_rate
+    from sim_core.integrate.types import Params, Work, table_of
 
     tab = table_of(flat_constraint())
     par = Params.build(

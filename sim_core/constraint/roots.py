@@ -90,7 +90,7 @@ def illinois_bracket(
     midpoint if none): b is the first point known to have g > 0 (where an event of the
     integrator is), the last point the best estimate of the zero. The one Illinois loop of
     railtwin: ``illinois`` above and the integrator's events and extrema
-    (``sim_core.integrate_events.find_root``) run it.
+    (``sim_core.integrate.events.find_root``) run it.
     """
     side = 0
     m = 0.5 * (a + b)

@@ -14,7 +14,7 @@ derivative, and where the exact constraint changes shape (an offset line of a
 rail segment meets the arc of the wheel pivoting on a vertex, G'' jumping by
 1/R) so does the table's. ``curvature_jumps_between`` lists those nodes with the
 size of the jump |ΔG''|; steps in contact stop on the ones whose error over the
-step would exceed the tolerance (``sim_core.integrator``), as on kinks but
+step would exceed the tolerance (``sim_core.integrate.loop``), as on kinks but
 without restarting the jerk (it is continuous there).
 
 A table may be *periodic* (a round wheel on a cosine rail, any wheel on a

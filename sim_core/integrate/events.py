@@ -1,6 +1,6 @@
 """Event detection and location on a step's dense output, with one root finder.
 
-An event (``integrate_types.Event``) is a sign change of its event function g
+An event (``types.Event``) is a sign change of its event function g
 from <= 0 to > 0 (``event_value``). A step is first *accepted*, then its dense
 output is searched for the first event in it:
 
@@ -18,7 +18,7 @@ changes of dδ/dt and dF/dt that are the extrema. It runs railtwin's one Illinoi
 loop (``sim_core.constraint.roots.illinois_bracket``, which the constraint's
 ``illinois`` runs too) on the step's dense output.
 
-Worked example: see ``sim_core.integrator``; ``tests/test_integrator.py``
+Worked example: see ``sim_core.integrate.loop``; ``tests/test_integrator.py``
 checks the located transitions against an independent solver to 1e-7 s.
 """
 
@@ -30,9 +30,9 @@ from numpy.typing import NDArray
 
 from sim_core.constraint.roots import illinois_bracket
 from sim_core.contact_laws import HERTZ
-from sim_core.integrate_dense import end_acceleration
-from sim_core.integrate_model import delta_rate, force_rate
-from sim_core.integrate_types import (
+from sim_core.integrate.dense import end_acceleration
+from sim_core.integrate.model import delta_rate, force_rate
+from sim_core.integrate.types import (
     ELASTIC,
     EV_CONTACT,
     EV_LOSS,

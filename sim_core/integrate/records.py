@@ -30,9 +30,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sim_core.constraint.table import linear_at
-from sim_core.integrate_dense import dense_state
-from sim_core.integrate_events import curvature_of_delta, extremum_in, interior_reach
-from sim_core.integrate_model import (
+from sim_core.integrate.dense import dense_state
+from sim_core.integrate.events import curvature_of_delta, extremum_in, interior_reach
+from sim_core.integrate.model import (
     constraint_at,
     delta_rate,
     force,
@@ -40,7 +40,7 @@ from sim_core.integrate_model import (
     loading_force,
     slope_at,
 )
-from sim_core.integrate_types import (
+from sim_core.integrate.types import (
     ELASTIC,
     F_FORCE_RATE,
     F_RATE,
@@ -70,7 +70,7 @@ from sim_core.integrate_types import (
 def grown(buf: NDArray[np.float64], n: int, extra: int) -> NDArray[np.float64]:
     """``buf`` (rows) with room for ``extra`` more rows after the first ``n``: doubled when short.
 
-    Called between runs of the loop (``integrator``), which itself allocates nothing.
+    Called between runs of the loop (``loop``), which itself allocates nothing.
     """
     if n + extra <= buf.shape[0]:
         return buf
@@ -192,8 +192,8 @@ def step_extrema(
     """Fold the extrema of δ and F over the contact step [t, t + h] into ``ext``.
 
     ``d_b``, ``r_b``: δ and dδ/dt at the step's end (left-hand slope: the end may be a
-    kink), from the end's jerks (``integrate_model.jerks_and_delta``). Returns (d_b,
-    r_b, the step's mean d²δ/dt², hint): what ``integrator.step_toward_loss`` predicts from.
+    kink), from the end's jerks (``model.jerks_and_delta``). Returns (d_b,
+    r_b, the step's mean d²δ/dt², hint): what ``loop.step_toward_loss`` predicts from.
 
     An interior extremum of δ (dδ/dt changes sign) is located only if it can change a
     record: ``interior_reach`` bounds it from the end values, and when the bound stays

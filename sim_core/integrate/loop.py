@@ -1,4 +1,4 @@
-"""Compiled adaptive DOP853 integrator (with a DOPRI5 short step) and located contact events.
+"""The loop of the compiled adaptive integrator: step-size control, breakpoints, events.
 
 The state is (y_C, v_C, y_M, v_M); on a rigid foundation y_M ≡ v_M ≡ 0. The
 right-hand side is smooth inside each *mode* — flight (F = 0), elastic contact
@@ -20,7 +20,7 @@ the first one it may not straddle (``stop_on_jump``: its error 0.0016·ω·V²·
 in velocity within ``JUMP_SHARE`` of the tolerance), with no restart (the jerk is
 continuous there). On a rough sampled rail that is ~3 stops per mm; the steps they
 cut far below DOP853's proposal (h·ω ~ 0.01) are taken by the Dormand–Prince 5(4)
-pair (``short_step``: 6 new right-hand sides against 12) under its own error
+pair (the same step driven by DOPRI5's tableau: 6 new right-hand sides against 12) under its own error
 estimate, falling back to DOP853 if it rejects; DOP853's proposal is kept for
 when the intervals are long again.
 
@@ -31,14 +31,15 @@ of diffrax:
 
 | concern | where |
 |---|---|
-| inputs, outputs, codes (``Table``, ``Params``, ``Event``, ``Result``) | ``integrate_types`` |
-| the vector field, F, jerks, δ and dδ/dt on a step | ``integrate_model`` |
-| the step (``rk_step``) and its size control (``attempt_step``) | here |
-| the short step (``short_step``) and when it is taken (``short_reach``) | here, ``dopri5`` |
+| inputs, outputs, codes (``Table``, ``Params``, ``Event``, ``Result``) | ``sim_core.integrate.types`` |
+| the vector field, F, jerks, δ and dδ/dt on a step | ``sim_core.integrate.model`` |
+| the tableaus as data (``DOP853``, ``DOPRI5``) | ``sim_core.integrate.tableau`` |
+| the one step any tableau drives (``rk_step``) | ``sim_core.integrate.step`` |
+| the step's size control (``attempt_step``), when DOPRI5 is taken (``short_reach``) | here |
 | breakpoints: kinks and the curvature jumps a step may not straddle (``stop_on_jump``) | here, ``constraint.table`` |
-| dense output: the septic Hermite interpolant | ``integrate_dense`` |
-| event detection and location (one root finder) | ``integrate_events`` |
-| samples, extrema, dents, transitions | ``integrate_records`` |
+| dense output: the septic Hermite interpolant | ``sim_core.integrate.dense`` |
+| event detection and location (one root finder) | ``sim_core.integrate.events`` |
+| samples, extrema, dents, transitions | ``sim_core.integrate.records`` |
 
 Dense output is the septic Hermite polynomial through the positions,
 velocities, accelerations and jerks at both step ends (exact for flight,
@@ -56,10 +57,9 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
-from sim_core import dop853, dopri5
-from sim_core.integrate_dense import fill_dense
-from sim_core.integrate_events import detect_in_contact, detect_in_flight
-from sim_core.integrate_model import (
+from sim_core.integrate.dense import fill_dense
+from sim_core.integrate.events import detect_in_contact, detect_in_flight
+from sim_core.integrate.model import (
     constraint_at,
     delta_rate,
     jerks,
@@ -69,7 +69,7 @@ from sim_core.integrate_model import (
     rhs,
     value_at_x,
 )
-from sim_core.integrate_records import (
+from sim_core.integrate.records import (
     dent_rows,
     grown,
     push_row,
@@ -78,7 +78,8 @@ from sim_core.integrate_records import (
     write_initial_samples,
     write_samples,
 )
-from sim_core.integrate_types import (
+from sim_core.integrate.step import DOP853_STAGES, dop853_step, dopri5_step
+from sim_core.integrate.types import (
     ELASTIC,
     EV_CONTACT,
     EV_LOSS,
@@ -152,160 +153,9 @@ linearised frequency, with the foundation's mass if compliant): its local error 
 (|h·λ| up to ~3), where its embedded estimate is to be trusted. The site's steps between
 breakpoints (5 µs at ω = 1700 /s) have h·ω ≈ 0.01."""
 
-_A = dop853.A
-_B = dop853.B
-_C = dop853.C
-_E3 = dop853.E3
-_E5 = dop853.E5
-_A45 = dopri5.A
-_B45 = dopri5.B
-_C45 = dopri5.C
-_E45 = dopri5.E
 
-
-@numba.njit(cache=True, inline="always")
-def _store_stage(
-    w: Work, s: int, state: NDArray[np.float64], ac: float, am: float, d: float
-) -> None:
-    """Row s of K = f at a stage whose state is ``state`` (accelerations ac, am), and δ there."""
-    w.K[s, 0] = state[1]
-    w.K[s, 1] = ac
-    w.K[s, 2] = state[3]
-    w.K[s, 3] = am
-    w.dstage[s] = d
-
-
-@kernel
-def rk_step(
-    t: float,
-    y: NDArray[np.float64],
-    h: float,
-    mode: int,
-    w: Work,
-    par: Params,
-    tab: Table,
-    hint: int,
-) -> tuple[float, int]:
-    """One DOP853 step from (t, y) with K[0] = f(t, y); fills K[1..12], ynew; returns (error norm, hint).
-
-    K rows hold (v_C, a_C, v_M, a_M); dstage[i] is δ at stage i (NaN in flight). The
-    stage sums run over the wheel's two components, and the foundation's two when it is
-    compliant, each a constant count the compiler unrolls; the right-hand side is
-    inlined once. (A body per component count, as before, doubled the compile time of
-    the integrator's largest kernel; sums over all four components always, zeros on a
-    rigid foundation, cost 7 % on Fig. 4's case.)
-    """
-    K = w.K
-    tmp = w.tmp
-    ynew = w.ynew
-    dstage = w.dstage
-    compliant = par.compliant
-    for s in range(1, 12):
-        for j in range(2):
-            acc = 0.0
-            for q in range(s):
-                acc += _A[s, q] * K[q, j]
-            tmp[j] = y[j] + h * acc
-        if compliant:
-            for j in range(2, 4):
-                acc = 0.0
-                for q in range(s):
-                    acc += _A[s, q] * K[q, j]
-                tmp[j] = y[j] + h * acc
-        ac, am, d, hint = rhs(t + _C[s] * h, tmp[0], tmp[1], tmp[2], tmp[3], mode, par, tab, hint)
-        K[s, 0] = tmp[1]
-        K[s, 1] = ac
-        K[s, 2] = tmp[3]
-        K[s, 3] = am
-        dstage[s] = d
-    for j in range(4):
-        if j < 2 or compliant:
-            acc = 0.0
-            for q in range(12):
-                acc += _B[q] * K[q, j]
-            ynew[j] = y[j] + h * acc
-        else:
-            ynew[j] = y[j]
-    ac, am, d, hint = rhs(t + h, ynew[0], ynew[1], ynew[2], ynew[3], mode, par, tab, hint)
-    _store_stage(w, 12, ynew, ac, am, d)
-    # DOP853 error norm (as in Hairer's code and SciPy)
-    nc = 4 if compliant else 2
-    err5 = 0.0
-    err3 = 0.0
-    for j in range(nc):
-        atol = par.atol_y if j % 2 == 0 else par.atol_v
-        sc = atol + par.rtol * max(abs(y[j]), abs(ynew[j]))
-        e5 = 0.0
-        e3 = 0.0
-        for q in range(13):
-            e5 += _E5[q] * K[q, j]
-            e3 += _E3[q] * K[q, j]
-        e5 /= sc
-        e3 /= sc
-        err5 += e5 * e5
-        err3 += e3 * e3
-    if err5 == 0.0 and err3 == 0.0:
-        return 0.0, hint
-    denom = err5 + 0.01 * err3
-    return abs(h) * err5 / math.sqrt(denom * nc), hint
-
-
-@kernel
-def short_step(
-    t: float,
-    y: NDArray[np.float64],
-    h: float,
-    mode: int,
-    w: Work,
-    par: Params,
-    tab: Table,
-    hint: int,
-) -> tuple[float, int]:
-    """One Dormand–Prince 5(4) step (``sim_core.dopri5``): as ``rk_step``, at half its price.
-
-    Fills K[1..5] and K[12] (the end: FSAL) and ynew (rows 6..11 are left as they
-    were: nothing after the step reads them); returns (its error norm, hint). For steps
-    the breakpoints cut far below DOP853's proposal. Components as in ``rk_step``.
-    """
-    K = w.K
-    tmp = w.tmp
-    ynew = w.ynew
-    compliant = par.compliant
-    for s in range(1, 6):
-        for j in range(2):
-            acc = 0.0
-            for q in range(s):
-                acc += _A45[s, q] * K[q, j]
-            tmp[j] = y[j] + h * acc
-        if compliant:
-            for j in range(2, 4):
-                acc = 0.0
-                for q in range(s):
-                    acc += _A45[s, q] * K[q, j]
-                tmp[j] = y[j] + h * acc
-        ac, am, d, hint = rhs(t + _C45[s] * h, tmp[0], tmp[1], tmp[2], tmp[3], mode, par, tab, hint)
-        _store_stage(w, s, tmp, ac, am, d)
-    for j in range(4):
-        if j < 2 or compliant:
-            acc = 0.0
-            for q in range(6):
-                acc += _B45[q] * K[q, j]
-            ynew[j] = y[j] + h * acc
-        else:
-            ynew[j] = y[j]
-    ac, am, d, hint = rhs(t + h, ynew[0], ynew[1], ynew[2], ynew[3], mode, par, tab, hint)
-    _store_stage(w, 12, ynew, ac, am, d)
-    nc = 4 if compliant else 2
-    err = 0.0
-    for j in range(nc):
-        atol = par.atol_y if j % 2 == 0 else par.atol_v
-        sc = atol + par.rtol * max(abs(y[j]), abs(ynew[j]))
-        e = _E45[6] * K[12, j]
-        for q in range(6):
-            e += _E45[q] * K[q, j]
-        e /= sc
-        err += e * e
-    return abs(h) * math.sqrt(err / nc), hint
+_C = DOP853_STAGES.c
+"""DOP853's stage times, with the end point at 1 (where a loss may be aimed short of)."""
 
 
 @numba.njit(cache=True, inline="always")
@@ -409,7 +259,7 @@ def attempt_step(
     """
     n_rej = 0
     while True:
-        err, hint = rk_step(t, y, h, mode, w, par, tab, hint)
+        err, hint = dop853_step(t, y, h, mode, w, par, tab, hint)
         if err <= 1.0:
             return OK, h, err, n_rej, hint
         n_rej += 1
@@ -639,7 +489,7 @@ def _run(
             w.dstage[0] = -y[0] + ck + y[2]
         cut = (hit_kink or jq >= 0) and h < h_control
         if mode != FLIGHT and cut and h <= h_short and h <= reach:
-            err, hint = short_step(t, y, h, mode, w, par, tab, hint)
+            err, hint = dopri5_step(t, y, h, mode, w, par, tab, hint)
             nrhs += 6
             # its own proposal, not capped in growth: the breakpoints set the steps, and
             # a step cut to a sliver between two of them must not bar the next one
@@ -677,7 +527,7 @@ def _run(
             hstep = ev_s * h
             if hstep > H_MIN:
                 # K[0] is the same start: the redone stages overwrite the rest
-                _, hint = rk_step(t, y, hstep, mode, w, par, tab, hint)
+                _, hint = dop853_step(t, y, hstep, mode, w, par, tab, hint)
                 nrhs += 12
                 j1c, j1m, d_1, r_1, hint = jerks_and_delta(
                     t + hstep, ynew, K[12, 3], mode, par, tab, hint, True
@@ -788,7 +638,7 @@ def integrate(
     larger transition or dent buffers whenever it stops for room.
 
     Args:
-        tab: the constraint table (``integrate_types.table_of``).
+        tab: the constraint table (``types.table_of``).
         kinks: kink positions x (absolute, sorted) over the passage.
         jumps, jump_sizes: positions x (absolute, sorted) of the constraint's curvature
             jumps over the passage and their sizes |ΔG''| (1/m): steps in contact stop on

@@ -8,7 +8,7 @@ last): six new right-hand sides per step against DOP853's twelve.
 
 railtwin takes this step where the constraint's breakpoints (kinks, curvature
 jumps) cut a contact step far below what DOP853's controller allows
-(``sim_core.integrator``): there h·ω is about 0.01 and a 5th-order step's error,
+(``sim_core.integrate.loop``): there h·ω is about 0.01 and a 5th-order step's error,
 ~(h·ω)⁶ of the motion, is far below any tolerance the passage asks for, so its
 half-price stages are all that is needed. Its embedded 4th-order solution gives
 its own error estimate, and the dense output (a septic Hermite polynomial from

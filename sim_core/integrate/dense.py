@@ -4,7 +4,7 @@ With s = (t - t_n)/h the position of each body is Σ c_k s^k, k = 0..7,
 matching position, velocity, acceleration and jerk at both step ends: exact
 for flight (a parabola), O(h⁸) in contact. DOP853 gives the accelerations
 without extra stages; the jerks are F'(δ)·dδ/dt through the masses
-(``integrate_model.jerks``). Row 0 of the coefficients is the wheel, row 1 the
+(``model.jerks``). Row 0 of the coefficients is the wheel, row 1 the
 foundation.
 
 Worked example: a parabola y = t²/2 over a step of h = 2 is reproduced exactly,

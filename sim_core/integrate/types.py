@@ -78,7 +78,7 @@ class Event(IntEnum):
     """A change of mode located by the integrator: the transition codes of ``PassageOutput``.
 
     Each has an event function g, signed so that the event is g going from <= 0 to > 0
-    (``sim_core.integrate_events.event_value``).
+    (``sim_core.integrate.events.event_value``).
     """
 
     LOSS = 0
@@ -240,7 +240,7 @@ class Work(NamedTuple):
     ynew: NDArray[np.float64]
     """[4] the state at the step's end."""
     coef: NDArray[np.float64]
-    """[2, 8] the step's dense output (``integrate_dense``)."""
+    """[2, 8] the step's dense output (``sim_core.integrate.dense``)."""
     stack_s: NDArray[np.float64]
     """[128] the flight scan's bisection stack: fractions ..."""
     stack_g: NDArray[np.float64]

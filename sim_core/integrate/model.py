@@ -1,15 +1,15 @@
 """The vector field of MODEL.md §4 and the quantities read off a step's dense output.
 
 The state is (y_C, v_C, y_M, v_M); on a rigid foundation y_M ≡ v_M ≡ 0.
-Within one step the *mode* (flight, elastic, plastic: ``integrate_types``) is
+Within one step the *mode* (flight, elastic, plastic: ``sim_core.integrate.types``) is
 fixed, so the right-hand side is smooth there.
 
 Every function here takes the table and the parameters as the named tuples of
-``sim_core.integrate_types`` and a look-up ``hint`` (the last table interval),
+``sim_core.integrate.types`` and a look-up ``hint`` (the last table interval),
 which it returns updated: consecutive look-ups are close, so the next one
 starts from the last interval instead of a bisection over the whole table.
 
-Worked example: ``sim_core.integrator.integrate`` is the only caller; see
+Worked example: ``sim_core.integrate.loop.integrate`` is the only caller; see
 ``sim_core.passage.simulate_passage`` for a passage end to end.
 """
 
@@ -21,8 +21,8 @@ from numpy.typing import NDArray
 
 from sim_core.constraint.table import linear_at, table_eval
 from sim_core.contact_laws import HERTZ, contact_force, mode_force, mode_stiffness
-from sim_core.integrate_dense import dense_state
-from sim_core.integrate_types import ELASTIC, FLIGHT, PLASTIC, Params, Table, kernel
+from sim_core.integrate.dense import dense_state
+from sim_core.integrate.types import ELASTIC, FLIGHT, PLASTIC, Params, Table, kernel
 
 
 @numba.njit(cache=True, inline="always")
@@ -130,7 +130,7 @@ def jerks_and_delta(
 
     ``left``: take the constraint's slope just before t (a step ending on a kink).
     δ and dδ/dt (0 in flight) come from the same look-up: at a step's end they are
-    what ``integrate_records.step_extrema`` folds, so it need not look the end up again.
+    what ``records.step_extrema`` folds, so it need not look the end up again.
 
     (A curvature-dependent C(x) adds C'(x)·V·δ^(3/2), neglected here: it only
     touches the interpolation between step ends, not the steps.)
