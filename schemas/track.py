@@ -38,12 +38,14 @@ from schemas._base import (
 MAX_CRIBS = 32
 """At most this many cribs in one detector (CONTRACT.md; ``sim_core.track.spec.MAX_CRIBS``)."""
 
-MAX_TRACK_LENGTH = 200.0
+MAX_TRACK_LENGTH = 30.0
 """Longest simulated stretch on a discrete or slab foundation, m.
 
-The rail is a beam on supports whose size, and so the work (and memory) of one
-passage, grows with the stretch: 200 m is 333 sleeper bays at 0.6 m, far longer
-than any detector site (a few metres) with its run-in.
+The rail is a beam on supports reduced to its modes up to 16 kHz: their number, and so the
+work of every step and the reduction's dense eigen-solves, grows with the stretch (about
+1 000 modes for 30 m of 0.6 m bays; the physics refuses more than
+``sim_core.track.modal.MAX_MODES`` = 1 500). 30 m is five times a detector site (a few
+metres) with its run-in.
 """
 
 MIN_SLEEPER_SPACING = 0.1

@@ -7,6 +7,7 @@ Every comparison is a relative tolerance far above rounding (no last-bit depende
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -206,3 +207,56 @@ def test_plastic_laws_on_the_track_locate_yield_and_dent(contact: str) -> None:
         assert res.rail_after is not None and len(res.rail_after.x) > 2
     else:
         assert res.summary.peak_force > f_y
+
+
+def test_a_track_needing_too_many_modes_is_refused_at_the_edge(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """MAX_MODES bounds the work: the count at the limit passes, one more is refused, naming
+    the foundation (railtwin simulate: exit code 2)."""
+    from sim_core.track import modal
+
+    track = TrackSpec.slab(sleeper_spacing=0.6, first_sleeper=0.0, pad=Support(6e7, 1.5e4))
+    n = reduce_track(track, 0.0, 1.2, cutoff=1000.0).n_modes
+    modal._reduce.cache_clear()
+    monkeypatch.setattr(modal, "MAX_MODES", n)
+    monkeypatch.setenv("RAILTWIN_TRACK_CACHE", "off")
+    assert reduce_track(track, 0.0, 1.2, cutoff=1000.0).n_modes == n
+    modal._reduce.cache_clear()
+    monkeypatch.setattr(modal, "MAX_MODES", n - 1)
+    with pytest.raises(TrackError, match=r"^foundation: .*MAX_MODES"):
+        reduce_track(track, 0.0, 1.2, cutoff=1000.0)
+    modal._reduce.cache_clear()
+
+
+def test_railtwin_simulate_refuses_a_track_too_large_to_model(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """28 m of 0.1 m bays (within MAX_TRACK_LENGTH) is refused before anything is built: one
+    line naming the foundation and the limit, exit code 2, no result written."""
+    import json
+
+    from service.cli.main import main
+
+    path = tmp_path / "dense.json"
+    out = tmp_path / "out.json"
+    scenario = {
+        "wheel": {"mass": 700.0, "load": 85000.0, "radius": 0.46, "outline": {"kind": "round"}},
+        "rail": {"kind": "flat"},
+        "material": {"youngs_modulus": 2.14e11, "poisson_ratio": 0.3},
+        "contact": "hertz",
+        "foundation": {
+            "kind": "slab",
+            "sleeper_spacing": 0.1,
+            "first_sleeper": 0.05,
+            "pad": {"stiffness": 1e7},
+        },
+        "speed": 20.0,
+        "duration": 1.4,
+        "sample_rate": 1000.0,
+    }
+    path.write_text(json.dumps(scenario))
+    assert main(["simulate", str(path), "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "foundation" in err[0] and "MAX_DOFS" in err[0]
+    assert not out.exists()

@@ -154,10 +154,19 @@ def _run(scenario: Any, source: str, args: argparse.Namespace) -> Any:
     progress = None
     if scenario.passes > 1 and not args.quiet:
         progress = _ProgressPrinter(sys.stderr)
+    from sim_core.track.spec import TrackError
+
     try:
         return run_scenario(scenario, progress=progress)
     except KeyboardInterrupt:
         raise
+    except TrackError as exc:  # a track the physics cannot take (too many modes): the input's
+        message = f"invalid scenario {source}: {exc}"
+        raise CommandError(
+            message,
+            EXIT_USAGE,
+            ErrorReport(error="invalid_scenario", message=message, source=source),
+        ) from None
     except Exception as exc:
         if args.debug:
             traceback.print_exc()

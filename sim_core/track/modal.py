@@ -46,21 +46,26 @@ from sim_core.track.beam import (
     shear_ratio,
 )
 from sim_core.track.layout import ABSORBER_BAYS, ELEMENTS_PER_BAY, MARGIN_BAYS, TrackLayout, layout
-from sim_core.track.spec import Crib, TrackSpec
+from sim_core.track.spec import Crib, TrackError, TrackSpec
 from sim_core.track.stepper import Modes
 
 CUTOFF = 16000.0
 """Highest undamped track frequency kept as a mode, Hz (convergence: docs/MODEL.md §8)."""
 
-MAX_MODES = 800
-"""At most this many modes: the work per step grows with them (a documented limit)."""
+MAX_MODES = 1500
+"""At most this many modes: the work per step, and the reduction's dense eigen-solves, grow
+with them (a documented limit: docs/CONTRACT.md; a 30 m stretch of 0.6 m bays needs ~1 000)."""
+
+MAX_DOFS = 4000
+"""At most this many finite-element degrees of freedom before the reduction (its dense
+eigen-solves grow as their cube: ~2 400 for 30 m of 0.6 m bays)."""
 
 BUBBLE_POINTS = 33
 """Samples of an element's bubble compliance over ξ in [0, 1] (interpolated linearly)."""
 
 
-class TrackTooLargeError(ValueError):
-    """The finite track would need more modes than ``MAX_MODES``."""
+class TrackTooLargeError(TrackError):
+    """The finite track would need more modes than ``MAX_MODES`` (field ``foundation``)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -196,6 +201,13 @@ def _reduce(
         absorber_bays=absorber_bays,
         elements_per_bay=elements_per_bay,
     )
+    dofs = 2 * lay.n_nodes + (len(lay.sleepers) if track.kind == "discrete" else 0)
+    if dofs > MAX_DOFS:
+        raise TrackTooLargeError(
+            "foundation",
+            f"the track model would have {dofs} degrees of freedom, more than MAX_DOFS = "
+            f"{MAX_DOFS}: shorten the simulated stretch or lengthen the sleeper spacing",
+        )
     name = store.key(
         (track, x0, x1, cribs, cutoff, margin_bays, absorber_bays, elements_per_bay, ABSORBER_RATE)
     )
@@ -244,11 +256,6 @@ def _modal(mats: TrackMatrices, cutoff: float, cribs: tuple[Crib, ...]) -> Modal
     w2max = (2.0 * np.pi * cutoff) ** 2
     w2, phi = sla.eigh(mats.k, mats.m, subset_by_value=(-np.inf, w2max), driver="gvx")
     n = w2.size
-    if n > MAX_MODES:
-        raise TrackTooLargeError(
-            f"the track model needs {n} modes below {cutoff:g} Hz, more than {MAX_MODES}: "
-            "shorten the simulated stretch"
-        )
     cr = phi.T @ mats.c @ phi
     a = np.zeros((2 * n, 2 * n))
     a[:n, n:] = np.eye(n)
@@ -259,6 +266,12 @@ def _modal(mats: TrackMatrices, cutoff: float, cribs: tuple[Crib, ...]) -> Modal
     keep = lam.imag > 1e-9 * np.abs(lam)
     real = np.abs(lam.imag) <= 1e-9 * np.abs(lam)
     sel = keep | real
+    if int(sel.sum()) > MAX_MODES:
+        raise TrackTooLargeError(
+            "foundation",
+            f"the track model needs {int(sel.sum())} modes below {cutoff:g} Hz, more than "
+            f"MAX_MODES = {MAX_MODES}: shorten the simulated stretch or lengthen the sleeper spacing",
+        )
     weight = np.where(keep[sel], 2.0, 1.0)
     lam_k = lam[sel]
     v_k = v[:, sel]
