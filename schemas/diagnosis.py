@@ -1,7 +1,8 @@
 """Wheel-flat diagnosis: the measured passage in, the verdict out, the site's limits.
 
-A wayside site (a wheel impact load detector) measures the vertical wheel–rail force
-of every wheel. The twin pairs each ``MeasuredPassage`` with its ``WheelPassage`` (by
+A wayside site measures every wheel: a contact-force sensor the vertical wheel–rail force
+(``MeasuredPassage.force``), a wheel impact load detector one shear-bridge channel per crib
+(``MeasuredPassage.channels``, keyed by the site's ``detector.cribs`` ids). The twin pairs each ``MeasuredPassage`` with its ``WheelPassage`` (by
 ``passage_id``, in either order of arrival), fits the flat that makes its simulation
 look like the measurement (``sim_core.diagnosis``) and answers with a ``Diagnosis``.
 
@@ -12,14 +13,20 @@ look like the measurement (``sim_core.diagnosis``) and answers with a ``Diagnosi
 
     >>> m = MeasuredPassage.model_validate_json(
     ...     '{"passage_id": "t1-a3-r", "sample_rate": 10000, "t_start": 0.0,'
-    ...     ' "force": [60000, 60100, 59900, 60050]}')
+    ...     ' "force": [60000, 60100, 59900, 60050, 60000, 60100, 59900, 60050,'
+    ...     ' 60000, 60100, 59900, 60050, 60000, 60100, 59900, 60050]}')
     >>> m.samples, m.duration
-    (4, 0.0003)
+    (16, 0.0015)
+    >>> c = MeasuredPassage.model_validate({
+    ...     "passage_id": "t1-a3-r", "sample_rate": 10000, "t_start": 0.0,
+    ...     "channels": {"ch1": [0.0] * 16, "ch2": [1.0] * 16}})
+    >>> c.force is None, c.channel_ids, c.samples
+    (True, ('ch1', 'ch2'), 16)
 """
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal
 
 from pydantic import Field, model_validator
 
@@ -31,6 +38,7 @@ from schemas.messages import (
     VersionedMessage,
     WheelRef,
 )
+from schemas.track import MAX_CRIBS
 
 MAX_MEASURED_SAMPLES = 2_000_000
 """Cap on the samples of one measured passage (200 s at 10 kHz): larger is refused."""
@@ -47,34 +55,91 @@ DEFAULT_REMOVE_LENGTH = 0.06
 
 
 class MeasuredPassage(VersionedMessage):
-    """The site's measured vertical wheel–rail force of one passage.
+    """The site's measurement of one passage: the contact force, or the detector's channels.
 
-    Sample k was taken at t = t_start + k / sample_rate, with t = 0 when the wheel
-    centre was at the site's start (x = 0).
+    Exactly one of ``force`` (a contact-force sensor) and ``channels`` (schema 1.4: a wheel
+    impact load detector, one shear-bridge channel per crib, keyed by crib id) is given.
+    Every series has the same samples: sample k was taken at t = t_start + k / sample_rate,
+    with t = 0 when the wheel centre was at the site's start (x = 0).
     """
 
     schema_version: Version = MESSAGE_SCHEMA_VERSION
     passage_id: Identifier = Field(description="the WheelPassage this measurement belongs to")
     sample_rate: Positive = Field(le=1e6, description="samples per second, Hz")
     t_start: Finite = Field(description="time of sample 0, s (t = 0: wheel centre at x = 0)")
-    force: list[Finite] = Field(
-        min_length=MIN_MEASURED_SAMPLES,
-        max_length=MAX_MEASURED_SAMPLES,
+    force: (
+        Annotated[
+            list[Finite], Field(min_length=MIN_MEASURED_SAMPLES, max_length=MAX_MEASURED_SAMPLES)
+        ]
+        | None
+    ) = Field(
+        default=None,
         description="measured vertical wheel–rail force, N; 16 to 2 000 000 samples (the whole "
-        "payload at most 64 MiB)",
+        "payload at most 64 MiB); null when the site measured channels",
+    )
+    channels: dict[Identifier, list[Finite]] | None = Field(
+        default=None,
+        description=f"the detector's measured channels (schema 1.4), N: crib id -> series, 1 to "
+        f"{MAX_CRIBS} cribs, each of the same 16 or more samples, all together at most "
+        f"{MAX_MEASURED_SAMPLES} values; the ids must be the site's detector.cribs ids; null "
+        "when the site measured the contact force",
     )
     speed: Positive | None = Field(
         default=None, le=150.0, description="speed as measured by the site, m/s (optional)"
     )
 
+    @model_validator(mode="after")
+    def _one_measurement(self) -> MeasuredPassage:
+        if (self.force is None) == (self.channels is None):
+            raise field_error(
+                "force",
+                "give exactly one of force (a contact-force sensor) and channels (a detector's "
+                "cribs)",
+            )
+        if self.force is not None:
+            return self
+        channels = self.channels or {}
+        if not 1 <= len(channels) <= MAX_CRIBS:
+            raise field_error(
+                "channels", f"has {len(channels)} channels; 1 to {MAX_CRIBS} are allowed"
+            )
+        first, series = next(iter(channels.items()))
+        n = len(series)
+        for crib, values in channels.items():
+            if len(values) != n:
+                raise field_error(
+                    f"channels.{crib}",
+                    f"has {len(values)} samples but channels.{first} has {n}: every channel "
+                    "has the same samples",
+                )
+        if n < MIN_MEASURED_SAMPLES:
+            raise field_error(
+                f"channels.{first}",
+                f"has {n} samples, at least {MIN_MEASURED_SAMPLES} are needed",
+            )
+        if n * len(channels) > MAX_MEASURED_SAMPLES:
+            raise field_error(
+                "channels",
+                f"{len(channels)} channels of {n} samples: more than {MAX_MEASURED_SAMPLES} "
+                "values in all",
+            )
+        return self
+
+    @property
+    def channel_ids(self) -> tuple[str, ...]:
+        """The crib ids of the channels, as given (empty for a contact-force measurement)."""
+        return tuple(self.channels or ())
+
     @property
     def samples(self) -> int:
-        return len(self.force)
+        if self.force is not None:
+            return len(self.force)
+        return len(next(iter((self.channels or {}).values()), []))
 
     @property
     def duration(self) -> float:
         """s between the first and the last sample."""
-        return (len(self.force) - 1) / self.sample_rate
+        return (self.samples - 1) / self.sample_rate
 
 
 FlatKindName = Literal["flat", "rounded_flat"]

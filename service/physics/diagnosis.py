@@ -24,6 +24,11 @@ from service.physics import inputs as physics_inputs
 from service.physics.measurement_error import MeasurementError
 from service.physics.model_version import model_version
 from service.physics.site_physics import SitePhysics
+from service.wire.measured_channels import (
+    CHANNELS_FIELD,
+    CHANNELS_NOT_DIAGNOSED,
+    channels_mismatch,
+)
 from sim_core.diagnosis.estimate import (
     DEFAULT_OPTIONS,
     EXPLAINED_RATIO,
@@ -167,8 +172,18 @@ class Diagnoser:
             self.site.rtol,
         )
 
+    def check_channels(self, measured: MeasuredPassage) -> None:
+        """Refuse a channel measurement (``MeasurementError``, field ``channels``): one whose
+        ids are not the site's cribs with what differs, a valid one because the diagnosis
+        from crib channels is not available yet. A contact-force measurement passes."""
+        if measured.channels is None:
+            return
+        mismatch = channels_mismatch(measured, self.site)
+        raise MeasurementError(CHANNELS_FIELD, mismatch or CHANNELS_NOT_DIAGNOSED)
+
     def check(self, passage: WheelPassage, measured: MeasuredPassage) -> float:
         """Refuse what cannot be diagnosed; returns the speed to use (m/s)."""
+        self.check_channels(measured)
         cfg = self.site.diagnosis
         if measured.passage_id != passage.passage_id:
             raise MeasurementError(
@@ -217,7 +232,7 @@ class Diagnoser:
                 f"{measured.t_start + measured.duration:g}] s covers less than "
                 f"{MIN_RECORD_FRACTION:.0%} of the wheel's time on the site [0, {on_site:g}] s",
             )
-        f = np.asarray(measured.force)
+        f = np.asarray(measured.force, dtype=np.float64)
         if float(np.ptp(f)) == 0.0:
             raise MeasurementError("force", "the record is constant: no sensor signal")
         return speed
@@ -233,7 +248,8 @@ class Diagnoser:
         ``compare``: flats (kind, length, depth factor) whose cost on the fit's own windows
         comes back in ``FitCurves.estimate.compared`` (validation compares the truth's)."""
         start = time.perf_counter()
-        wheel = self.wheel(passage)  # first: a site the fit does not model refuses any record
+        self.check_channels(measured)  # first: the channels are not fitted yet
+        wheel = self.wheel(passage)  # then: a site the fit does not model refuses any record
         speed = self.check(passage, measured)
         t = measured.t_start + np.arange(measured.samples) / measured.sample_rate
         f = np.asarray(measured.force, dtype=np.float64)
