@@ -10,21 +10,39 @@ record is site S01's passage P01 of the handed-over ``track-sites`` data
 
 from __future__ import annotations
 
+import json
+import threading
+import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
+import zenoh
 from pydantic import ValidationError
 
 from schemas.diagnosis import MAX_MEASURED_SAMPLES, MeasuredPassage
-from schemas.messages import MESSAGE_SCHEMA_VERSION
+from schemas.messages import MESSAGE_SCHEMA_VERSION, Health, ServiceError, WheelPassage
+from schemas.site import SiteConfig
+from service.cli.main import main as cli_main
 from service.clients.measured_io import MeasuredFileError, read_measured, read_measured_csv
+from service.physics.local import LocalPhysics
+from service.physics.port import DiagnosisOutcome, MeasurementError
+from service.physics.stub import StubPhysics
+from service.recording.mcap_log import read_log
+from service.recording.recorder_process import ProcessRecorder, RecordingPlan
+from service.twin.twin import Twin
+from service.wire.encoding import json_encoding
+from service.wire.keyspace import SiteKeys
 from service.wire.measured_channels import (
+    CHANNELS_NOT_DIAGNOSED,
     channel_mismatch,
     channels_mismatch,
 )
 from service.wire.site import load_site
+from service.wire.zenoh_session import build_config, free_tcp_endpoint
+from tests import test_service_channels as detector_site
 
 DATA = Path(__file__).parent / "data" / "track-sites"
 SITE = DATA / "S01.site.toml"
@@ -182,3 +200,178 @@ def test_a_short_or_empty_csv_is_refused(tmp_path: Path) -> None:
         read_measured_csv(tmp_path / "e.csv", "p1")
     with pytest.raises(MeasuredFileError, match="passage_id"):
         read_measured_csv(write_csv(tmp_path / "b.csv", ["ch1"], n=16), "not/an id")
+
+
+# -- railtwin diagnose --------------------------------------------------------------------
+
+
+def diagnose(tmp_path: Path, csv: Path, capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
+    out = tmp_path / "d.json"
+    files = ["--site", str(SITE), "--passage", str(PASSAGE), "--measured", str(csv)]
+    code = cli_main(["diagnose", *files, "--out", str(out)])
+    assert not out.exists()  # never a diagnosis
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1, err
+    return code, err[0]
+
+
+def test_diagnose_says_the_diagnosis_from_channels_is_not_available_yet(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code, err = diagnose(tmp_path, CSV, capsys)
+    assert code == 2
+    assert f"invalid measurement {CSV}: channels: {CHANNELS_NOT_DIAGNOSED}" in err
+
+
+def test_diagnose_names_the_missing_and_extra_channels(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    csv = write_csv(tmp_path / "m.csv", [*CRIBS[:7], "ch9"], n=40)
+    code, err = diagnose(tmp_path, csv, capsys)
+    assert code == 2 and "channels: " in err and "missing ch8; extra ch9" in err
+    csv = write_csv(tmp_path / "w.csv", CRIBS, n=40, rate=2e4)  # not the site's 10 kHz
+    code, err = diagnose(tmp_path, csv, capsys)
+    assert code == 2 and "line 3, column 1 (t_s)" in err and "sample rate 10000 Hz" in err
+
+
+# -- railtwin feed-measured ---------------------------------------------------------------
+
+
+def feed(args: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str]:
+    """``railtwin feed-measured`` at site S01 towards a port nobody listens on: whatever it
+    refuses, it refuses before opening Zenoh."""
+    train = Path(__file__).parents[1] / "recordings" / "samples" / "train_160kmh.json"
+    files = ["--site-file", str(SITE), "--train", str(train)]
+    code = cli_main(
+        ["feed-measured", *files, "--timeout", "1", "--connect", "tcp/127.0.0.1:9", *args]
+    )
+    err = capsys.readouterr().err.strip().splitlines()
+    return code, err[-1] if err else ""
+
+
+def test_feed_measured_refuses_channels_that_are_not_the_sites_cribs(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    csv = write_csv(tmp_path / "t1-a0-r.csv", ["ch1", "ch2"], n=40)
+    code, err = feed(["--measured", str(csv)], capsys)
+    assert code == 2, err
+    assert "measurement of t1-a0-r: channels:" in err and "missing ch3, ch4" in err
+    saved = tmp_path / "m.json"
+    m = measured(passage_id="t1-a0-r", channels=channels([*CRIBS, "ch9"]))
+    saved.write_text(json.dumps([m.model_dump(mode="json")]))
+    code, err = feed(["--load", str(saved)], capsys)
+    assert code == 2 and f"invalid measurement in {saved}" in err and "extra ch9" in err
+    bad = write_csv(tmp_path / "t1-a1-r.csv", CRIBS, n=40)
+    _edited(bad, 5, "0.000300,1,2")
+    code, err = feed(["--measured", str(bad)], capsys)
+    assert code == 2 and f"{bad}: line 5: expected 9 values" in err
+
+
+# -- the twin's pairing -------------------------------------------------------------------
+
+
+class Answers:
+    """What the twin publishes for a client: results and errors, by passage id."""
+
+    def __init__(self) -> None:
+        self.lock = threading.Lock()
+        self.results: list[str] = []
+        self.errors: list[ServiceError] = []
+
+    def __call__(self, sample: zenoh.Sample) -> None:
+        key = str(sample.key_expr)
+        with self.lock:
+            if "/result/" in key:
+                self.results.append(key.rsplit("/", 1)[1])
+            elif key.endswith("/error"):
+                self.errors.append(ServiceError.model_validate_json(sample.payload.to_bytes()))
+
+    def wait(self, results: int, errors: int, timeout: float = 20.0) -> None:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            with self.lock:
+                if len(self.results) >= results and len(self.errors) >= errors:
+                    return
+            time.sleep(0.02)
+        raise AssertionError(f"timed out: {self.results}, {self.errors}")
+
+
+@pytest.fixture
+def twin_answers(tmp_path: Path) -> Iterator[tuple[Answers, list[str], Health]]:
+    """The twin of a 2-crib site (``ch1``, ``ch2``) on the stand-in physics, whose diagnoses
+    are a spy: fed a passage and its contact-force measurement between two channel
+    measurements (wrong ids, right ids). Yields the answers, the passage ids the spy was
+    asked to diagnose, and the twin's health after."""
+    config: SiteConfig = detector_site.site()
+    keys = SiteKeys(config.site_id)
+    asked: list[str] = []
+
+    def spy(passage: WheelPassage, m: MeasuredPassage) -> DiagnosisOutcome:
+        asked.append(m.passage_id)
+        raise MeasurementError("force", "the spy does not diagnose")
+
+    endpoint = free_tcp_endpoint()
+    answers = Answers()
+    recorder = ProcessRecorder(
+        RecordingPlan(tmp_path, "run", config.site_id, flush_interval=0.05, cribs=("ch1", "ch2"))
+    )
+    with (
+        zenoh.open(build_config(listen=[endpoint])) as server,
+        zenoh.open(build_config(connect=[endpoint])) as client,
+    ):
+        twin = Twin(config, server, LocalPhysics(StubPhysics(config), spy), recorder=recorder)
+        twin.start()
+        try:
+            sub = client.declare_subscriber(keys.all_outputs, answers)
+            ppub = client.declare_publisher(keys.passage, encoding=json_encoding(WheelPassage))
+            mpub = client.declare_publisher(keys.measured, encoding=json_encoding(MeasuredPassage))
+            deadline = time.monotonic() + 20
+            while not (ppub.matching_status.matching and mpub.matching_status.matching):  # type: ignore[attr-defined]
+                assert time.monotonic() < deadline, "the twin did not subscribe"
+                time.sleep(0.02)
+            ppub.put(detector_site.passage("p0").model_dump_json())  # the answers reach us
+            answers.wait(results=1, errors=0)
+            wrong = measured(passage_id="p1", channels=channels(["ch1", "ch3"], n=64))
+            right = measured(passage_id="p2", channels=channels(["ch2", "ch1"], n=64))
+            force = measured(passage_id="p3", force=[6e4] * 64)
+            mpub.put(wrong.model_dump_json())
+            ppub.put(detector_site.passage("p3").model_dump_json())
+            mpub.put(force.model_dump_json())
+            mpub.put(right.model_dump_json())
+            answers.wait(results=2, errors=3)
+            (reply,) = [r for r in client.get(keys.health, timeout=5.0) if r.ok]
+            health = Health.model_validate_json(reply.ok.payload.to_bytes())
+            sub.undeclare()
+        finally:
+            twin.stop()
+            recorder.close()
+    yield answers, asked, health
+
+
+def test_the_twin_rejects_channels_clearly_and_loses_nothing_else(
+    twin_answers: tuple[Answers, list[str], Health], tmp_path: Path
+) -> None:
+    answers, asked, health = twin_answers
+    by_id = {e.passage_id: e for e in answers.errors}
+    assert sorted(by_id) == ["p1", "p2", "p3"]
+    wrong, right = by_id["p1"], by_id["p2"]
+    assert wrong.kind == right.kind == "invalid_measurement"
+    assert wrong.field == right.field == "channels"
+    assert wrong.message == (
+        "measurement of p1 rejected: channels: the ids must be the site's detector cribs "
+        "ch1, ch2: missing ch2; extra ch3"
+    )
+    assert right.message == f"measurement of p2 rejected: channels: {CHANNELS_NOT_DIAGNOSED}"
+    # the contact-force measurement went on to the diagnosis, and the passages were served
+    assert asked == ["p3"] and "the spy does not diagnose" in by_id["p3"].message
+    assert sorted(answers.results) == ["p0", "p3"]
+    assert health.errors == 3 and health.passages_done == 2
+    logged = [m for m in read_log(sorted(tmp_path.glob("*.mcap")))]
+    measured_logged = [
+        MeasuredPassage.model_validate_json(m.data).passage_id
+        for m in logged
+        if m.topic == "railtwin/s/measured"
+    ]
+    assert sorted(measured_logged) == ["p1", "p2", "p3"]
+    errors_logged = [m for m in logged if m.topic == "railtwin/s/error"]
+    assert len(errors_logged) == 3

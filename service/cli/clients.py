@@ -16,6 +16,7 @@ from schemas.messages import TrainFile, WheelPassage
 from service.cli.common import EXIT_FAILURE, EXIT_USAGE, CommandError, SubParsers
 from service.cli.inputs import load_json_file, load_site_file, zenoh_config
 from service.clients import feeder, measured_feeder, synthesize
+from service.clients.measured_io import MeasuredFileError
 from service.physics.measurement_error import MeasurementError
 from service.wire.zenoh_session import DEFAULT_ENDPOINT
 
@@ -58,8 +59,15 @@ def cmd_feed_measured(args: argparse.Namespace) -> int:
     site = load_site_file(args.site_file)
     train = load_json_file(args.train, "train", TrainFile)
     saved = None
+    if args.load is not None and args.measured:
+        raise CommandError("--load and --measured: give one or the other", EXIT_USAGE)
     if args.load is not None:
         saved = load_json_file(args.load, "measurements", list[MeasuredPassage])
+    elif args.measured:
+        try:
+            saved = measured_feeder.read_measured_files(args.measured, site)
+        except MeasuredFileError as exc:
+            raise CommandError(str(exc), EXIT_USAGE) from None
     else:
         axles = {w.passage.axle_index for w in train.wheels}
         missing = " ".join(str(a) for a in args.axles if a not in axles)
@@ -67,6 +75,11 @@ def cmd_feed_measured(args: argparse.Namespace) -> int:
             f"axles of train {train.train_id} ({min(axles, default=0)}..{max(axles, default=0)})"
         )
         _need(not missing, "--axles", missing, where)
+    if saved is not None:  # crib channels that are not the site's: refused before publishing
+        problem = measured_feeder.measurements_problem(saved, site)
+        if problem is not None:
+            source = args.load if args.load is not None else "--measured"
+            raise CommandError(f"invalid measurement in {source}: {problem}", EXIT_USAGE)
     cfg = zenoh_config(connect=args.connect or [DEFAULT_ENDPOINT])
     try:
         return measured_feeder.feed_measured(args, site, train, saved, cfg)

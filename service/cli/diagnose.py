@@ -4,9 +4,12 @@
                       [--out DIAGNOSIS.json] [--format table|json]
 
 The passage is a ``WheelPassage`` JSON file (speed, load, mass, radius; its outline is
-ignored: finding the flat is the point); the measurement a CSV (``t_s,force_N``) or a
-railtwin MCAP log holding the passage's ``MeasuredPassage``. Prints a short table (or
-the Diagnosis JSON with ``--format json``) and writes the Diagnosis JSON to ``--out``.
+ignored: finding the flat is the point); the measurement a CSV (``t_s,force_N``, or
+``t_s`` then one column per crib id of the site's detector) or a railtwin MCAP log holding
+the passage's ``MeasuredPassage``. Prints a short table (or the Diagnosis JSON with
+``--format json``) and writes the Diagnosis JSON to ``--out``. The diagnosis fits a
+contact force: crib channels are read and checked against the site's cribs, then refused
+(exit 2: the diagnosis from crib channels is not available yet).
 Exit status: 0 done (whatever the verdict), 1 the fit failed, 2 invalid input.
 """
 
@@ -42,7 +45,7 @@ def register(subparsers: SubParsers) -> None:
         "--measured",
         required=True,
         type=Path,
-        help="measured force: CSV (t_s,force_N) or railtwin .mcap",
+        help="measured force: CSV (t_s,force_N, or t_s,<crib id>,... channels) or railtwin .mcap",
     )
     p.add_argument("--out", type=Path, default=None, help="write the Diagnosis JSON here")
     p.add_argument(
@@ -124,13 +127,25 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     from service.cli.inputs import load_json_file, load_site_file
     from service.clients.measured_io import MeasuredFileError, read_measured
     from service.physics.diagnosis import Diagnoser, IntegrationError, MeasurementError
+    from service.wire.measured_channels import (
+        CHANNELS_FIELD,
+        CHANNELS_NOT_DIAGNOSED,
+        channels_mismatch,
+    )
 
     site = load_site_file(args.site)
     passage = load_json_file(args.passage, "passage", WheelPassage)
     try:
-        measured = read_measured(args.measured, passage.passage_id)
+        measured = read_measured(
+            args.measured, passage.passage_id, sample_rate=site.diagnosis.sample_rate
+        )
     except MeasuredFileError as exc:
         raise CommandError(str(exc), EXIT_USAGE) from None
+    if measured.channels is not None:  # refused before any physics is built
+        problem = channels_mismatch(measured, site) or CHANNELS_NOT_DIAGNOSED
+        raise CommandError(
+            f"invalid measurement {args.measured}: {CHANNELS_FIELD}: {problem}", EXIT_USAGE
+        )
     print(
         f"railtwin diagnose: fitting {measured.samples} samples of {passage.passage_id} ...",
         file=sys.stderr,

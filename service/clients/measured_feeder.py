@@ -2,14 +2,19 @@
 
     railtwin feed-measured --train recordings/samples/train_160kmh.json \\
         --site-file examples/site_compliant.toml --connect tcp/127.0.0.1:7447 [--axles 0 5 13 20]
-        [--save M.json | --load M.json] [--with-train]
+        [--save M.json | --load M.json | --measured FILE...] [--with-train]
 
 The measurements are made by the generator (``railtwin synthesize``: each wheel's own
 outline, unknown roughness, foundation damping, sensor chain and noise); the wheels'
 passages must already have been sent (``railtwin feed``), or come later: the twin pairs
 them by passage id. One line per diagnosis, with the time from publishing the
 measurement to receiving its verdict. ``--save`` only generates (no Zenoh), ``--load``
-publishes saved ones; ``--with-train`` publishes each measurement when its wheel leaves
+publishes saved ones (a JSON list of ``MeasuredPassage``), ``--measured`` measured files
+(CSV or MCAP, ``service.clients.measured_io``; a file's name is its passage id:
+``<passage_id>.csv``), of the contact force or of the site's crib channels; a channel
+measurement must name exactly the site's ``detector.cribs`` (``railtwin feed-measured``
+refuses any other with exit 2 before publishing). The twin answers a channel measurement
+with an error until the diagnosis from crib channels exists. ``--with-train`` publishes each measurement when its wheel leaves
 the site, timed from the start like ``service.clients.feeder`` times the train (run both
 together: the diagnoses are then made while the train streams, as at a real site).
 """
@@ -29,9 +34,11 @@ from schemas.diagnosis import Diagnosis, MeasuredPassage
 from schemas.messages import ServiceError, TrainFile
 from schemas.site import SiteConfig
 from service.clients.feeder import load_train, wait_matching
+from service.clients.measured_io import MeasuredFileError, read_measured
 from service.clients.synthesize import measure, passage_tread
 from service.wire.encoding import json_encoding
 from service.wire.keyspace import SiteKeys
+from service.wire.measured_channels import CHANNELS_FIELD, channels_mismatch
 from service.wire.site import load_site
 from service.wire.zenoh_session import DEFAULT_ENDPOINT, build_config, open_session
 
@@ -70,6 +77,15 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--save", type=Path, default=None, help="only generate, into this file")
     p.add_argument("--load", type=Path, default=None, help="publish measurements saved before")
     p.add_argument(
+        "--measured",
+        type=Path,
+        nargs="+",
+        default=None,
+        metavar="FILE",
+        help="publish these measured files (CSV: t_s,force_N or t_s,<crib id>,...; or .mcap), "
+        "each named <passage_id>.csv",
+    )
+    p.add_argument(
         "--with-train",
         action="store_true",
         help="publish each when its wheel leaves the site (train timing)",
@@ -84,14 +100,42 @@ def main(argv: list[str] | None = None) -> int:
 
 def run(a: argparse.Namespace) -> int:
     """Make (or load) the measurements and publish them, or only save them."""
+    site = load_site(a.site_file)
     saved = None
     if a.load is not None:
         saved = [
             MeasuredPassage.model_validate(d)
             for d in json.loads(a.load.read_text(encoding="utf-8"))
         ]
+    elif a.measured:
+        try:
+            saved = read_measured_files(a.measured, site)
+        except MeasuredFileError as exc:
+            print(f"railtwin feed-measured: {exc}", file=sys.stderr)
+            return 2
+    if saved is not None:
+        problem = measurements_problem(saved, site)
+        if problem is not None:
+            print(f"railtwin feed-measured: {problem}", file=sys.stderr)
+            return 2
     cfg = build_config(connect=a.connect or [DEFAULT_ENDPOINT])
-    return feed_measured(a, load_site(a.site_file), load_train(a.train), saved, cfg)
+    return feed_measured(a, site, load_train(a.train), saved, cfg)
+
+
+def read_measured_files(paths: list[Path], site: SiteConfig) -> list[MeasuredPassage]:
+    """The measurements in ``paths``, each file's name (without suffix) its passage id, read
+    at the site's measuring rate; ``MeasuredFileError`` for the first that cannot be read."""
+    return [read_measured(p, p.stem, sample_rate=site.diagnosis.sample_rate) for p in paths]
+
+
+def measurements_problem(measured: list[MeasuredPassage], site: SiteConfig) -> str | None:
+    """One line on the first measurement whose channels are not the site's cribs, or None
+    (what the twin would refuse anyway: refused before anything is published)."""
+    for m in measured:
+        mismatch = channels_mismatch(m, site)
+        if mismatch is not None:
+            return f"measurement of {m.passage_id}: {CHANNELS_FIELD}: {mismatch}"
+    return None
 
 
 def feed_measured(
