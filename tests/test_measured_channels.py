@@ -202,6 +202,18 @@ def test_a_short_or_empty_csv_is_refused(tmp_path: Path) -> None:
         read_measured_csv(write_csv(tmp_path / "b.csv", ["ch1"], n=16), "not/an id")
 
 
+def test_the_diagnoser_refuses_channels_before_any_fit() -> None:
+    """The library path (re-analysis, workers) refuses as the CLI and the twin do."""
+    from service.physics.diagnosis import Diagnoser  # the physics, imported, not run
+
+    compliant = load_site(Path(__file__).parents[1] / "examples" / "site_compliant.toml")
+    p = WheelPassage.model_validate_json(PASSAGE.read_text(encoding="utf-8"))
+    m = measured(passage_id=p.passage_id, channels=channels(CRIBS, n=2000))
+    with pytest.raises(MeasurementError) as info:
+        Diagnoser(compliant).diagnose(p, m)
+    assert info.value.field == "channels" and "no detector" in info.value.message
+
+
 # -- railtwin diagnose --------------------------------------------------------------------
 
 
