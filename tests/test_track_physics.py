@@ -6,6 +6,7 @@ Every comparison is a relative tolerance far above rounding (no last-bit depende
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -260,3 +261,37 @@ def test_railtwin_simulate_refuses_a_track_too_large_to_model(
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "foundation" in err[0] and "MAX_DOFS" in err[0]
     assert not out.exists()
+
+
+def test_gauges_next_to_a_sleeper_keep_its_node() -> None:
+    """A gauge 2 mm from a sleeper moves plain nodes onto itself, never the sleeper's node
+    (its pad would land inside the next crib) nor another gauge's."""
+    from sim_core.track.layout import layout
+
+    lay = layout(ROSE_TRACK, 0.0, 3.0, gauges=(0.7, 1.198, 1.202, 1.5))
+    for x in (0.6, 1.2, 1.8, 0.7, 1.198, 1.202, 1.5):
+        assert np.min(np.abs(lay.x - x)) < 1e-9, x
+    assert np.allclose(lay.x[lay.sleeper_nodes], lay.sleepers)
+
+
+def test_curvature_stiffness_is_refused_on_a_track() -> None:
+    from sim_core.constraint import curvature_stiffness_scale, tabulate_constraint
+    from sim_core.rail import RailProfile
+    from sim_core.track.passage import simulate_on_track
+    from sim_core.wheel import WheelOutline
+
+    d = derive(Material(2.14e11, 0.3), radius=0.46, load=85000.0, mass=700.0)
+    table = tabulate_constraint(WheelOutline.round(0.46), RailProfile.cosine(2e-5, 0.05), 0.0, 0.2)
+    scale = curvature_stiffness_scale(table, RailProfile.cosine(2e-5, 0.05), 0.46)
+    scaled = dataclasses.replace(table, stiffness_scale=scale)
+    spec = PassageSpec(
+        mass=700.0,
+        load=85000.0,
+        speed=10.0,
+        duration=0.01,
+        sample_rate=1e4,
+        contact=ContactModel(ContactLaw.HERTZ, d.contact_coefficient),
+        foundation=ROSE_TRACK,
+    )
+    with pytest.raises(TrackError, match=r"^curvature_stiffness"):
+        simulate_on_track(scaled, spec, ROSE_TRACK)

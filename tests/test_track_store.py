@@ -36,10 +36,13 @@ def test_a_broken_entry_is_recomputed(tmp_path: Path, monkeypatch: pytest.Monkey
     monkeypatch.setenv("RAILTWIN_TRACK_CACHE", str(tmp_path))
     a = _fresh(1.8)
     (entry,) = tmp_path.glob("*.npz")
-    entry.write_bytes(b"not a zip")
-    b = _fresh(1.8)
-    assert np.array_equal(a.lam, b.lam)
-    assert store.load(entry.stem) is not None  # rewritten
+    good = entry.read_bytes()
+    for broken in (b"not a zip", b"", good[: len(good) // 2]):
+        entry.write_bytes(broken)
+        b = _fresh(1.8)
+        assert np.array_equal(a.lam, b.lam)
+        assert store.load(entry.stem) is not None  # rewritten
+    assert not list(tmp_path.glob("*.tmp"))
 
 
 def test_off_writes_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

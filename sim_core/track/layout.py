@@ -94,8 +94,10 @@ def layout(
         g = np.asarray(gauges, dtype=np.float64)
         near = np.abs(nodes[:, None] - g[None, :]) < 1e-9
         nodes = np.union1d(nodes, g[~near.any(axis=0)])
-        # a node closer than 1/8 element to a gauge is moved onto it, not doubled
-        nodes = _merge_close(nodes, g, 0.125 * ls / elements_per_bay)
+        # a plain subdivision node closer than 1/8 element to a gauge is moved onto it, not
+        # doubled; sleeper nodes and gauges always stay
+        keep = np.concatenate([np.asarray(sleepers), g])
+        nodes = _merge_close(nodes, g, keep, 0.125 * ls / elements_per_bay)
     mid = 0.5 * (nodes[:-1] + nodes[1:])
     depth = np.maximum(
         sleepers[0] + absorber_bays * ls - mid, mid - (sleepers[-1] - absorber_bays * ls)
@@ -106,10 +108,14 @@ def layout(
 
 
 def _merge_close(
-    nodes: NDArray[np.float64], gauges: NDArray[np.float64], tol: float
+    nodes: NDArray[np.float64],
+    gauges: NDArray[np.float64],
+    fixed: NDArray[np.float64],
+    tol: float,
 ) -> NDArray[np.float64]:
+    """``nodes`` without the plain ones closer than ``tol`` to a gauge (``fixed`` ones stay)."""
     keep = np.ones(nodes.size, dtype=bool)
     for g in gauges:
-        close = (np.abs(nodes - g) < tol) & (np.abs(nodes - g) > 1e-9)
-        keep &= ~close
-    return nodes[keep]
+        keep &= ~((np.abs(nodes - g) < tol) & (np.abs(nodes - g) > 1e-9))
+    is_fixed = (np.abs(nodes[:, None] - fixed[None, :]) <= 1e-9).any(axis=1)
+    return nodes[keep | is_fixed]

@@ -131,6 +131,12 @@ class ModalTrack:
         xi = (x - self.elem_x[e]) / self.elem_len[e]
         return e, deflection_shapes(xi, float(self.elem_len[e]), float(self.elem_phi[e]))
 
+    def bubble_compliance(self, x: float) -> float:
+        """The element's own local static compliance at x (0 on a node), m/N."""
+        e = self.element_of(x)
+        xi = (x - self.elem_x[e]) / self.elem_len[e]
+        return float(np.interp(xi, np.linspace(0.0, 1.0, BUBBLE_POINTS), self.bubble[e]))
+
     def residual_compliance(self, x: float) -> float:
         """r(x), m/N: the static compliance the kept modes leave out (truncation and bubble)."""
         e, n = self._shapes(x)
@@ -211,7 +217,7 @@ def _reduce(
     name = store.key(
         (track, x0, x1, cribs, cutoff, margin_bays, absorber_bays, elements_per_bay, ABSORBER_RATE)
     )
-    kept = store.load(name)
+    kept = store.load(name, (*_ARRAYS, "x"))
     if kept is not None and kept["x"].shape == lay.x.shape and np.array_equal(kept["x"], lay.x):
         return _from_arrays(track, lay, cutoff, cribs, kept)
     mt = _modal(assemble(track, lay), cutoff, cribs)

@@ -38,7 +38,7 @@ from numpy.typing import NDArray
 from sim_core.contact_laws import ContactLaw
 from sim_core.track import stepper as st
 from sim_core.track.modal import ModalTrack, reduce_track
-from sim_core.track.spec import TrackSpec, check_cribs
+from sim_core.track.spec import TrackError, TrackSpec, check_cribs
 
 if TYPE_CHECKING:
     from sim_core.constraint.table import ConstraintTable
@@ -70,11 +70,16 @@ def simulate_on_track(
     step: float = STEP,
     track_dents: bool | None = None,
     dent_spacing: float = 1e-4,
+    max_steps: int = 50_000_000,
 ) -> PassageOutput:
-    """Simulate one passage of ``spec`` over ``table`` on ``track``; ``spec.cribs`` get channels."""
+    """Simulate one passage of ``spec`` over ``table`` on ``track``; ``spec.cribs`` get channels.
+
+    Raises ``IntegrationError`` past ``max_steps`` steps or ``MAX_TRANSITIONS`` transitions.
+    """
     from sim_core.passage import (
         TRANSITION_KINDS,
         InitialState,
+        IntegrationError,
         PassageOutput,
         Transition,
         static_indentation,
@@ -89,6 +94,12 @@ def simulate_on_track(
         lo = min([x0, *(c.x_a for c in cribs)])
         hi = max([x1, *(c.x_b for c in cribs)])
         check_cribs(cribs, track, lo, hi)
+    if table.stiffness_scale.size:
+        raise TrackError(
+            "curvature_stiffness",
+            "the curvature-dependent Hertz coefficient is not modelled on a discrete or slab "
+            "track: leave it false",
+        )
     mt = model or reduce_track(track, x0, x1, cribs)
     law = spec.contact.law
     if track_dents is None:
@@ -119,7 +130,10 @@ def simulate_on_track(
     sample_t = np.minimum(t0 + np.arange(n_samples) / spec.sample_rate, t1)
     kinks = table.kinks_between(x0 - 1e-12, x1 + table.resolution)
     if kinks.size:
-        at = np.minimum(np.searchsorted(table.x, kinks), table.x.size - 1)
+        # a periodic table's kinks recur every period: read each one's jump at its own node
+        xk = kinks if table.period <= 0.0 else table.x[0] + np.mod(kinks - table.x[0], table.period)
+        at = np.clip(np.searchsorted(table.x, xk), 1, table.x.size - 1)
+        at = np.where(np.abs(table.x[at - 1] - xk) < np.abs(table.x[at] - xk), at - 1, at)
         jump = np.abs(table.slope_right[at] - table.slope_left[at])
         kinks = kinks[jump * v * h_max > KINK_FRACTION * d0]
     stops = np.ascontiguousarray(np.sort(kinks / v), dtype=np.float64)
@@ -152,7 +166,7 @@ def simulate_on_track(
         arr(table.contact_x),
         float(table.period),
     )
-    n_tr, n_dent = st.run(
+    n_tr, n_dent, status = st.run(
         mt.arrays,
         tab,
         wheel,
@@ -166,12 +180,19 @@ def simulate_on_track(
         float(init.v_c),
         float(f0),
         bool(track_dents),
+        int(max_steps),
         samples,
         channels,
         transitions,
         dents,
         extrema,
     )
+    if status == st.TOO_MANY_STEPS:
+        raise IntegrationError(f"more than {max_steps} steps on the track: raise max_steps")
+    if status == st.TOO_MANY_TRANSITIONS:
+        raise IntegrationError(
+            f"more than {MAX_TRANSITIONS} transitions in one passage: the contact chatters"
+        )
     rows = transitions[:n_tr]
     order = np.argsort(rows[:, 0], kind="stable")
     rows = rows[order]

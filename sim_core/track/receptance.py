@@ -46,7 +46,8 @@ def fe_receptance(mt: ModalTrack, x: float, freqs: NDArray[np.float64]) -> NDArr
         w = 2.0 * np.pi * f
         u = sla.solve(mats.k + 1j * w * mats.c - w * w * mats.m, b.astype(np.complex128))
         out[i] = b @ u
-    return out
+    # the element's local deflection under a load between its nodes, as the reduced model has
+    return out + mt.bubble_compliance(x)
 
 
 def modal_receptance(

@@ -5,7 +5,7 @@ Then every step is exact but for that one assumption (second order in τ):
 
 - each track mode: ζ(t + τ) = e^{λτ}·ζ + τ·(φ₁ − φ₂)(λτ)·u_a + τ·φ₂(λτ)·u_b, with u = g(x)·F
   the mode's load, φ₁(z) = (eᶻ − 1)/z and φ₂(z) = (eᶻ − 1 − z)/z²;
-- the wheel: y(t + τ) = y + τ·v − P·τ²/2m + τ²·(F_a/6 + F_b/3)/m;
+- the wheel: y(t + τ) = y + τ·v − P·τ²/2m + τ²·(F_a/3 + F_b/6)/m (exact for F linear in t);
 - the contact: δ_b = δ* − κ·F_b is linear in the unknown end force F_b, so
   F_b = F(δ* − κ·F_b) is one monotone scalar equation, solved by safeguarded
   Newton (the loading branch of any law of MODEL.md §3).
@@ -46,6 +46,7 @@ E_PEAK_FORCE, E_MIN_FORCE, E_PEAK_DELTA, E_T_FLIGHT, E_STEPS = range(5)
 N_EXTREMA = 5
 
 EV_LOSS, EV_CONTACT, EV_YIELD, EV_UNYIELD = 0, 1, 2, 3
+OK, TOO_MANY_STEPS, TOO_MANY_TRANSITIONS = 0, 1, 2
 SERIES_LIMIT = 1e-3
 """Below this |λτ| the φ functions are summed as series (their closed forms cancel)."""
 
@@ -294,7 +295,7 @@ def solve_force(dstar: float, kappa: float, wh: Wheel) -> float:
 @numba.njit(cache=True, inline="always")
 def _wheel_at(y: float, v: float, fa: float, st: float, wh: Wheel) -> float:
     """The wheel's height after ``st`` without the step's end force."""
-    return y + st * v - wh.load * st * st / (2.0 * wh.mass) + st * st * fa / (6.0 * wh.mass)
+    return y + st * v - wh.load * st * st / (2.0 * wh.mass) + st * st * fa / (3.0 * wh.mass)
 
 
 @numba.njit(cache=True)
@@ -330,7 +331,7 @@ def trial(
     w0, bc = predict(he, nsh, md, co, zr, zi, ur, ui, pr, pi, gr, gi, qr, qi)
     ypred = _wheel_at(y, v, fa, st, wh)
     ckb, _, ht = table_eval(tab.x, tab.y, tab.sl, tab.sr, tab.period, xb, ht)
-    kappa = st * st / (3.0 * wh.mass) - bc + residual(he, xi, nsh, md)
+    kappa = st * st / (6.0 * wh.mass) - bc + residual(he, xi, nsh, md)
     return -ypred + ckb + w0, kappa, ypred, he, ht
 
 
@@ -358,13 +359,16 @@ def run(
     v0: float,
     f0: float,
     track_dents: bool,
+    max_steps: int,
     samples: NDArray[np.float64],
     channels: NDArray[np.float64],
     transitions: NDArray[np.float64],
     dents: NDArray[np.float64],
     extrema: NDArray[np.float64],
-) -> tuple[int, int]:
-    """Advance from t0 through every sample time; fill the outputs; return (transitions, dents) written.
+) -> tuple[int, int, int]:
+    """Advance from t0 through every sample time; fill the outputs; return (transitions, dents)
+    written and a status (OK; TOO_MANY_STEPS past ``max_steps``; TOO_MANY_TRANSITIONS when the
+    transition rows are full).
 
     Each step first tries its whole length; if the contact is lost or regained, or δ enters or
     leaves the plastic range, on the way, the event's instant is located on the step length
@@ -567,7 +571,7 @@ def run(
                     if not with_force:
                         delta_b = 0.0
                 commit(fb, zr, zi, ur, ui, pr, pi, gr, gi, qr, qi)
-                y = ypred + st * st * fb / (3.0 * wh.mass)
+                y = ypred + st * st * fb / (6.0 * wh.mass)
                 v = v - wh.load * st / wh.mass + st * (fa + fb) / (2.0 * wh.mass)
                 if not contact:
                     t_flight += st
@@ -577,10 +581,11 @@ def run(
                         contact = event == EV_CONTACT
                     else:
                         plastic = event == EV_YIELD
-                    if n_tr < transitions.shape[0]:
-                        transitions[n_tr, 0] = t_new
-                        transitions[n_tr, 1] = event
-                        n_tr += 1
+                    if n_tr >= transitions.shape[0]:
+                        return n_tr, n_dent, TOO_MANY_TRANSITIONS
+                    transitions[n_tr, 0] = t_new
+                    transitions[n_tr, 1] = event
+                    n_tr += 1
                 if track_dents and contact and delta_b > wh.d_y and n_dent < dents.shape[0]:
                     cx, _, _, _ = linear_at(tab.x, tab.cx, tab.period, wh.speed * t_new, ht, False)
                     dents[n_dent, 0] = t_new
@@ -608,6 +613,8 @@ def run(
                 remaining -= st
                 nominal = False
                 n_steps += 1
+                if n_steps > max_steps:
+                    return n_tr, n_dent, TOO_MANY_STEPS
         t = max(t, target)
         if t >= sample_t[i_samp] - tol_t:
             xs = wh.speed * t
@@ -655,4 +662,4 @@ def run(
     extrema[E_PEAK_DELTA] = peak_d
     extrema[E_T_FLIGHT] = t_flight
     extrema[E_STEPS] = n_steps
-    return n_tr, n_dent
+    return n_tr, n_dent, OK

@@ -16,6 +16,7 @@ Worked example (a key names its inputs and nothing else):
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import tempfile
@@ -46,17 +47,22 @@ def directory() -> Path | None:
     return Path.home() / ".cache" / "railtwin" / "track"
 
 
-def load(name: str) -> dict[str, np.ndarray] | None:
-    """The arrays of entry ``name``, or None (absent, unreadable, off)."""
+def load(name: str, fields: tuple[str, ...] = ()) -> dict[str, np.ndarray] | None:
+    """The arrays of entry ``name``, or None: absent, unreadable (a truncated or foreign file
+    raises anything from ``EOFError`` to ``zipfile.BadZipFile``), missing one of ``fields``,
+    or the cache off."""
     d = directory()
     if d is None:
         return None
     path = d / f"{name}.npz"
     try:
         with np.load(path, allow_pickle=False) as z:
-            return {k: z[k] for k in z.files}
-    except (OSError, ValueError, KeyError):
+            arrays = {k: z[k] for k in z.files}
+    except Exception:
         return None
+    if any(f not in arrays for f in fields):
+        return None
+    return arrays
 
 
 def save(name: str, arrays: dict[str, np.ndarray]) -> None:
@@ -64,11 +70,18 @@ def save(name: str, arrays: dict[str, np.ndarray]) -> None:
     d = directory()
     if d is None:
         return
+    tmp = None
     try:
         d.mkdir(parents=True, exist_ok=True)
         fd, tmp = tempfile.mkstemp(dir=d, suffix=".tmp")
         with os.fdopen(fd, "wb") as f:
             np.savez(f, **arrays)  # type: ignore[arg-type]  # numpy stubs: **kwds as bool
+        os.chmod(tmp, 0o644)  # mkstemp's 0600 would keep other users of a shared cache out
         os.replace(tmp, d / f"{name}.npz")
+        tmp = None
     except OSError:
         return
+    finally:
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
