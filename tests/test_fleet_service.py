@@ -197,6 +197,14 @@ def test_an_alarm_stored_but_never_published_is_published_on_start(tmp_path: Any
                 )
                 if start == 0:
                     wait_for(lambda: len(got) == 1, what="the stored alarm published")
+                # the put comes before its record in the store: wait for the record, not a
+                # moment after the put (a loaded machine showed the gap)
+                wait_for(
+                    lambda s=svc: (
+                        store.unpublished_alarms() == [] and not s.status()["alarms_waiting"]
+                    ),  # type: ignore[misc]
+                    what="the publication recorded",
+                )
                 assert store.unpublished_alarms() == []
                 status = svc.status()
                 assert status["alarms_published_late"] == (1 if start == 0 else 0)
