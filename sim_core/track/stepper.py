@@ -99,6 +99,25 @@ class Table(NamedTuple):
     period: float
 
 
+class Scratch(NamedTuple):
+    """The stepper's per-passage arrays, one entry a mode (the shape functions: four).
+
+    ζ (zr, zi) and the loads u = g·F at the last step's end (ur, ui); a trial step's
+    predicted ζ (pr, pi), its g at the end (gr, gi) and τφ₂·g (qr, qi)."""
+
+    zr: NDArray[np.float64]
+    zi: NDArray[np.float64]
+    ur: NDArray[np.float64]
+    ui: NDArray[np.float64]
+    pr: NDArray[np.float64]
+    pi: NDArray[np.float64]
+    gr: NDArray[np.float64]
+    gi: NDArray[np.float64]
+    qr: NDArray[np.float64]
+    qi: NDArray[np.float64]
+    nsh: NDArray[np.float64]
+
+
 @_fast
 def coefficients(md: Modes, tau: float, co: NDArray[np.float64]) -> None:
     """Rows of ``co``: Re, Im of e^{λτ}, τ(φ₁ − φ₂)(λτ) and τ·φ₂(λτ), by series where λτ is small."""
@@ -304,17 +323,7 @@ def trial(
     tab: Table,
     wh: Wheel,
     co: NDArray[np.float64],
-    nsh: NDArray[np.float64],
-    zr: NDArray[np.float64],
-    zi: NDArray[np.float64],
-    ur: NDArray[np.float64],
-    ui: NDArray[np.float64],
-    pr: NDArray[np.float64],
-    pi: NDArray[np.float64],
-    gr: NDArray[np.float64],
-    gi: NDArray[np.float64],
-    qr: NDArray[np.float64],
-    qi: NDArray[np.float64],
+    sc: Scratch,
     t: float,
     st: float,
     y: float,
@@ -323,12 +332,16 @@ def trial(
     he: int,
     ht: int,
 ) -> tuple[float, float, float, int, int]:
-    """A step of length ``st`` (coefficients ``co``) up to its end force: fills (pr, pi), (gr, gi),
-    (qr, qi); returns (δ*, κ, the wheel's height without the end force, element, table hints)."""
+    """A step of length ``st`` (coefficients ``co``) up to its end force: fills the scratch's
+    (pr, pi), (gr, gi), (qr, qi); returns (δ*, κ, the wheel's height without the end force,
+    element, table hints)."""
+    nsh = sc.nsh
     xb = wh.speed * (t + st)
     he = element_at(xb, md.ex, he)
     xi = shapes(xb, he, md, nsh)
-    w0, bc = predict(he, nsh, md, co, zr, zi, ur, ui, pr, pi, gr, gi, qr, qi)
+    w0, bc = predict(
+        he, nsh, md, co, sc.zr, sc.zi, sc.ur, sc.ui, sc.pr, sc.pi, sc.gr, sc.gi, sc.qr, sc.qi
+    )
     ypred = _wheel_at(y, v, fa, st, wh)
     ckb, _, ht = table_eval(tab.x, tab.y, tab.sl, tab.sr, tab.period, xb, ht)
     kappa = st * st / (6.0 * wh.mass) - bc + residual(he, xi, nsh, md)
@@ -388,6 +401,7 @@ def run(
     qr = np.empty(m)
     qi = np.empty(m)
     nsh = np.empty(4)
+    sc = Scratch(zr, zi, ur, ui, pr, pi, gr, gi, qr, qi, nsh)
     tau_n = -1.0
     he = 0
     ht = 0
@@ -448,30 +462,7 @@ def run(
                     coefficients(md, remaining, co_t)
                     co = co_t
                 st = remaining
-                dstar, kappa, ypred, he, ht = trial(
-                    md,
-                    tab,
-                    wh,
-                    co,
-                    nsh,
-                    zr,
-                    zi,
-                    ur,
-                    ui,
-                    pr,
-                    pi,
-                    gr,
-                    gi,
-                    qr,
-                    qi,
-                    t,
-                    st,
-                    y,
-                    v,
-                    fa,
-                    he,
-                    ht,
-                )
+                dstar, kappa, ypred, he, ht = trial(md, tab, wh, co, sc, t, st, y, v, fa, he, ht)
                 fb, delta_b = _end_delta(dstar, kappa, contact, wh)
                 # the first event on the way, as a function g of the step length rising through 0
                 event = -1
@@ -500,30 +491,7 @@ def run(
                         if not (lo < s < hi):
                             s = 0.5 * (lo + hi)
                         coefficients(md, s, co_t)
-                        ds, ks, _, he, ht = trial(
-                            md,
-                            tab,
-                            wh,
-                            co_t,
-                            nsh,
-                            zr,
-                            zi,
-                            ur,
-                            ui,
-                            pr,
-                            pi,
-                            gr,
-                            gi,
-                            qr,
-                            qi,
-                            t,
-                            s,
-                            y,
-                            v,
-                            fa,
-                            he,
-                            ht,
-                        )
+                        ds, ks, _, he, ht = trial(md, tab, wh, co_t, sc, t, s, y, v, fa, he, ht)
                         if with_force:
                             _, ds = _end_delta(ds, ks, True, wh)
                         gs = sgn * (ds - level)
@@ -544,28 +512,7 @@ def run(
                     st = hi
                     coefficients(md, st, co_t)
                     dstar, kappa, ypred, he, ht = trial(
-                        md,
-                        tab,
-                        wh,
-                        co_t,
-                        nsh,
-                        zr,
-                        zi,
-                        ur,
-                        ui,
-                        pr,
-                        pi,
-                        gr,
-                        gi,
-                        qr,
-                        qi,
-                        t,
-                        st,
-                        y,
-                        v,
-                        fa,
-                        he,
-                        ht,
+                        md, tab, wh, co_t, sc, t, st, y, v, fa, he, ht
                     )
                     fb, delta_b = _end_delta(dstar, kappa, contact and with_force, wh)
                     if not with_force:
