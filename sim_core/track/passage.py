@@ -33,9 +33,9 @@ import math
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import NDArray
 
 from sim_core.contact_laws import ContactLaw
+from sim_core.integrate.types import table_of
 from sim_core.track import stepper as st
 from sim_core.track.modal import ModalTrack, reduce_track
 from sim_core.track.spec import TrackError, TrackSpec, check_cribs
@@ -113,13 +113,7 @@ def simulate_on_track(
 
     # static equilibrium of wheel and track at x0
     f0 = spec.load
-    e = mt.element_of(x0)
-    xi = (x0 - mt.elem_x[e]) / mt.elem_len[e]
-    from sim_core.track.beam import deflection_shapes
-
-    n = deflection_shapes(xi, float(mt.elem_len[e]), float(mt.elem_phi[e]))
-    g = n @ mt.inp[2 * e : 2 * e + 4]
-    h = n @ mt.out_w[2 * e : 2 * e + 4]
+    h, g = mt.rows_at(x0)
     zeta = np.ascontiguousarray(-g * f0 / mt.lam)
     w0 = float(np.sum(mt.weight * (h * zeta).real)) - mt.residual_compliance(x0) * f0
     d0 = static_indentation(spec.contact, spec.load)
@@ -155,17 +149,7 @@ def simulate_on_track(
         float(v),
     )
 
-    def arr(a: NDArray[np.float64]) -> NDArray[np.float64]:
-        return np.ascontiguousarray(a, dtype=np.float64)
-
-    tab = st.Table(
-        arr(table.x),
-        arr(table.y),
-        arr(table.slope_left),
-        arr(table.slope_right),
-        arr(table.contact_x),
-        float(table.period),
-    )
+    tab = table_of(table)
     n_tr, n_dent, status = st.run(
         mt.arrays,
         tab,

@@ -37,6 +37,7 @@ from numpy.typing import NDArray
 
 from sim_core.constraint.table import linear_at, table_eval
 from sim_core.contact_laws import HERTZ, contact_force, mode_stiffness
+from sim_core.integrate.types import Table
 
 # sample columns
 C_T, C_X, C_YC, C_VC, C_YCK, C_W, C_DELTA, C_FORCE, C_CONTACT, C_VW = range(10)
@@ -88,15 +89,6 @@ class Wheel(NamedTuple):
     mass: float
     load: float
     speed: float
-
-
-class Table(NamedTuple):
-    x: NDArray[np.float64]
-    y: NDArray[np.float64]
-    sl: NDArray[np.float64]
-    sr: NDArray[np.float64]
-    cx: NDArray[np.float64]
-    period: float
 
 
 class Scratch(NamedTuple):
@@ -343,7 +335,7 @@ def trial(
         he, nsh, md, co, sc.zr, sc.zi, sc.ur, sc.ui, sc.pr, sc.pi, sc.gr, sc.gi, sc.qr, sc.qi
     )
     ypred = _wheel_at(y, v, fa, st, wh)
-    ckb, _, ht = table_eval(tab.x, tab.y, tab.sl, tab.sr, tab.period, xb, ht)
+    ckb, _, ht = table_eval(tab.x, tab.y, tab.slope_left, tab.slope_right, tab.period, xb, ht)
     kappa = st * st / (6.0 * wh.mass) - bc + residual(he, xi, nsh, md)
     return -ypred + ckb + w0, kappa, ypred, he, ht
 
@@ -420,7 +412,7 @@ def run(
         ur[j] = gr[j] * fa
         ui[j] = gi[j] * fa
     contact = fa > 0.0
-    ck, _, ht = table_eval(tab.x, tab.y, tab.sl, tab.sr, tab.period, x, ht)
+    ck, _, ht = table_eval(tab.x, tab.y, tab.slope_left, tab.slope_right, tab.period, x, ht)
     delta_a = -y + ck + deflection(he, nsh, md, zr, zi) - residual(he, xi, nsh, md) * fa
     plastic = plastic_law and contact and delta_a > wh.d_y
     n_tr = 0
@@ -534,7 +526,9 @@ def run(
                     transitions[n_tr, 1] = event
                     n_tr += 1
                 if track_dents and contact and delta_b > wh.d_y and n_dent < dents.shape[0]:
-                    cx, _, _, _ = linear_at(tab.x, tab.cx, tab.period, wh.speed * t_new, ht, False)
+                    cx, _, _, _ = linear_at(
+                        tab.x, tab.contact_x, tab.period, wh.speed * t_new, ht, False
+                    )
                     dents[n_dent, 0] = t_new
                     dents[n_dent, 1] = cx
                     dents[n_dent, 2] = delta_b
@@ -575,7 +569,9 @@ def run(
                 pi[j] = md.lam_r[j] * zi[j] + md.lam_i[j] * zr[j] + gi[j] * fa
             vw = deflection(he, nsh, md, pr, pi)
             rr = residual(he, xi, nsh, md)
-            ck, _, ht = table_eval(tab.x, tab.y, tab.sl, tab.sr, tab.period, xs, ht)
+            ck, _, ht = table_eval(
+                tab.x, tab.y, tab.slope_left, tab.slope_right, tab.period, xs, ht
+            )
             row = samples[i_samp]
             row[C_T] = t
             row[C_X] = xs
