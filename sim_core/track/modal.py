@@ -126,10 +126,17 @@ class ModalTrack:
             np.clip(np.searchsorted(self.elem_x, x, side="right") - 1, 0, self.elem_x.size - 1)
         )
 
-    def _shapes(self, x: float) -> tuple[int, NDArray[np.float64]]:
+    def shapes_at(self, x: float) -> tuple[int, NDArray[np.float64]]:
+        """(the element holding x, its four deflection shape functions at x)."""
         e = self.element_of(x)
         xi = (x - self.elem_x[e]) / self.elem_len[e]
         return e, deflection_shapes(xi, float(self.elem_len[e]), float(self.elem_phi[e]))
+
+    def rows_at(self, x: float) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
+        """(h, g) at x: every mode's deflection per unit ζ, and its load per unit downward force."""
+        e, n = self.shapes_at(x)
+        d = slice(2 * e, 2 * e + 4)
+        return n @ self.out_w[d], n @ self.inp[d]
 
     def bubble_compliance(self, x: float) -> float:
         """The element's own local static compliance at x (0 on a node), m/N."""
@@ -139,27 +146,20 @@ class ModalTrack:
 
     def residual_compliance(self, x: float) -> float:
         """r(x), m/N: the static compliance the kept modes leave out (truncation and bubble)."""
-        e, n = self._shapes(x)
-        xi = (x - self.elem_x[e]) / self.elem_len[e]
-        grid = np.linspace(0.0, 1.0, BUBBLE_POINTS)
-        return float(n @ self.resid[e] @ n + np.interp(xi, grid, self.bubble[e]))
+        e, n = self.shapes_at(x)
+        return float(n @ self.resid[e] @ n) + self.bubble_compliance(x)
 
     def static_compliance(self, x: float) -> float:
         """The reduced model's static point compliance at x, m/N (modes plus residual)."""
-        e, n = self._shapes(x)
-        d = slice(2 * e, 2 * e + 4)
-        h = n @ self.out_w[d]
-        g = n @ self.inp[d]
+        h, g = self.rows_at(x)
         # a unit downward force holds ζ = -g/λ; the rail moves by Σ weight·Re(h·ζ) (down)
         modal = float(np.sum(self.weight * (h * g / self.lam).real))
         return modal + self.residual_compliance(x)
 
     def fe_static_compliance(self, x: float) -> float:
         """The finite-element model's static point compliance at x (with the bubble), m/N."""
-        e, n = self._shapes(x)
-        xi = (x - self.elem_x[e]) / self.elem_len[e]
-        grid = np.linspace(0.0, 1.0, BUBBLE_POINTS)
-        return float(n @ self.fe_compliance_blocks[e] @ n + np.interp(xi, grid, self.bubble[e]))
+        e, n = self.shapes_at(x)
+        return float(n @ self.fe_compliance_blocks[e] @ n) + self.bubble_compliance(x)
 
 
 def reduce_track(

@@ -25,15 +25,13 @@ import scipy.linalg as sla
 from numpy.typing import NDArray
 
 from sim_core.track.assembly import assemble
-from sim_core.track.beam import deflection_shapes
 from sim_core.track.modal import ModalTrack
 
 
 def _load_vector(mt: ModalTrack, x: float, n_dofs: int) -> NDArray[np.float64]:
-    e = mt.element_of(x)
-    xi = (x - mt.elem_x[e]) / mt.elem_len[e]
+    e, n = mt.shapes_at(x)
     b = np.zeros(n_dofs)
-    b[2 * e : 2 * e + 4] = deflection_shapes(xi, float(mt.elem_len[e]), float(mt.elem_phi[e]))
+    b[2 * e : 2 * e + 4] = n
     return b
 
 
@@ -54,11 +52,7 @@ def modal_receptance(
     mt: ModalTrack, x: float, freqs: NDArray[np.float64]
 ) -> NDArray[np.complex128]:
     """α(f) of the reduced model at x (modes plus the static residual), m/N."""
-    e = mt.element_of(x)
-    xi = (x - mt.elem_x[e]) / mt.elem_len[e]
-    n = deflection_shapes(xi, float(mt.elem_len[e]), float(mt.elem_phi[e]))
-    h = n @ mt.out_w[2 * e : 2 * e + 4]
-    g = n @ mt.inp[2 * e : 2 * e + 4]
+    h, g = mt.rows_at(x)
     s = 2j * np.pi * np.asarray(freqs)[:, None]
     # ζ = g·F/(s − λ) for a unit downward force; its downward deflection is −Σ weight·Re-part
     # taken as the analytic continuation: the pair (λ, λ̄) gives h g/(s−λ) + conj(h g)/(s−λ̄)
