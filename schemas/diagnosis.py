@@ -31,6 +31,7 @@ from typing import Annotated, Literal
 from pydantic import Field, model_validator
 
 from schemas._base import Finite, MessageModel, NonNegative, Positive, StrictModel, field_error
+from schemas.calibration import CalibrationRef
 from schemas.messages import (
     MESSAGE_SCHEMA_VERSION,
     Identifier,
@@ -252,6 +253,12 @@ class Diagnosis(VersionedMessage):
         default=None,
         description="the model that made this diagnosis (package, track model, site "
         "fingerprint); null only in messages of producers older than schema 1.3",
+    )
+    calibration: CalibrationRef | None = Field(
+        default=None,
+        description="the calibration of the track the diagnosis used (nominal, offline or "
+        "online, with its fingerprint); null only in messages of producers older than "
+        "schema 1.5",
     )
 
 

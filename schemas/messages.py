@@ -30,7 +30,7 @@ site's start).
     ...     '{"passage_id": "t1-a3-r", "train_id": "t1", "axle_index": 3, "side": "right",'
     ...     ' "timestamp": 1.7e9, "speed": 44.4, "load": 39240, "mass": 400, "radius": 0.46}')
     >>> p.outline.kind, p.schema_version, p.wheel
-    ('round', '1.4', None)
+    ('round', '1.5', None)
     >>> WheelRef.parse("31-80-4751-123-4/2/left").id
     '31-80-4751-123-4/2/left'
 """
@@ -65,7 +65,7 @@ from schemas._base import (
 from schemas.result import Summary, Transition
 from schemas.scenario import TWO_PI, Outline, RoundOutline, check_outline_fits
 
-MESSAGE_SCHEMA_VERSION: Final = "1.4"
+MESSAGE_SCHEMA_VERSION: Final = "1.5"
 """Version of the service's messages that this build writes; it reads any ``1.x``.
 
 1.1 (issue 16): ``WheelRef``; ``WheelPassage.wheel``/``direction``;
@@ -75,7 +75,8 @@ MESSAGE_SCHEMA_VERSION: Final = "1.4"
 1.3 (issue 27): ``Diagnosis.model_version`` (re-analysis keyed on it);
 ``Health.passages_without_wheel``.
 1.4 (issue 26): ``MeasuredPassage.channels`` (a detector's crib channels instead of the
-contact force; ``force`` becomes optional, exactly one of the two is given)."""
+contact force; ``force`` becomes optional, exactly one of the two is given).
+1.5 (issue 26): ``Diagnosis.calibration``; the site file's ``[calibration]`` table."""
 
 MESSAGE_MAJOR: Final = 1
 """The major version this build reads."""

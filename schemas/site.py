@@ -21,6 +21,7 @@ from typing import Annotated, Literal
 from pydantic import Field, model_validator
 
 from schemas._base import Positive, StrictModel, field_error
+from schemas.calibration import SiteCalibration
 from schemas.diagnosis import DiagnosisConfig
 from schemas.messages import MESSAGE_SCHEMA_VERSION, Identifier, Version
 from schemas.scenario import (
@@ -93,6 +94,11 @@ class SiteConfig(StrictModel):
     diagnosis: DiagnosisConfig = Field(
         default_factory=DiagnosisConfig,
         description="wheel-flat diagnosis: measuring chain, line speed, limits",
+    )
+    calibration: SiteCalibration | None = Field(
+        default=None,
+        description="where the foundation's values came from (absent: nominal, as drawn); "
+        "written by `railtwin calibrate`",
     )
     rtol: float = Field(
         default=1e-8,

@@ -79,7 +79,7 @@ def test_a_measured_passage_carries_channels_or_force_and_the_version_is_1_4() -
     assert m.force is None and m.channel_ids == ("ch1", "ch2")
     assert m.samples == 32 and m.duration == pytest.approx(31e-4)
     assert MeasuredPassage.model_validate_json(m.model_dump_json()) == m
-    assert MESSAGE_SCHEMA_VERSION == "1.4" and m.schema_version == "1.4"
+    assert MESSAGE_SCHEMA_VERSION == "1.5" and m.schema_version == "1.5"
     f = measured(force=[6e4] * 20)  # the contact-force sensor keeps working
     assert f.channels is None and f.samples == 20 and f.channel_ids == ()
     # a 1.3 producer's force measurement (no channels key) still reads

@@ -207,7 +207,7 @@ def test_the_wheel_and_time_go_through_to_result_and_diagnosis(
     assert result.wheel == diag.wheel == WHEEL
     assert (result.side, result.axle_index) == ("right", 3)  # end 1 leading: rail side swapped
     assert (diag.site_id, diag.timestamp, result.timestamp) == ("km12", 1.75e9, 1.75e9)
-    assert diag.schema_version == "1.4"
+    assert diag.schema_version == "1.5"
     for s in subs:
         s.undeclare()
 

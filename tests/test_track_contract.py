@@ -467,7 +467,7 @@ def test_passage_result_channels_have_one_sample_per_x() -> None:
         "summary": _result({}, None)["summary"],
     } | {k: [0.0, 0.0] for k in ("x", "force", "indentation", "y_c", "y_ck")}
     ok = PassageResult.model_validate(base | {"channels": {"c1": [1.0, 2.0]}})
-    assert ok.channels == {"c1": [1.0, 2.0]} and ok.schema_version == "1.4"
+    assert ok.channels == {"c1": [1.0, 2.0]} and ok.schema_version == "1.5"
     assert PassageResult.model_validate(base).channels is None  # a 1.1 producer's result
     with pytest.raises(ValidationError, match=r"channels\.c1"):
         PassageResult.model_validate(base | {"channels": {"c1": [1.0]}})

@@ -138,7 +138,7 @@ def test_producers_write_1_1_with_the_wheel() -> None:
     wheel = {"vehicle_id": "V1", "wheelset": 2, "side": "right"}
     d = Diagnosis.model_validate({**DIAGNOSIS, "wheel": wheel, "timestamp": 1.7e9})
     out = json.loads(d.model_dump_json())
-    assert out["schema_version"] == MESSAGE_SCHEMA_VERSION == "1.4"
+    assert out["schema_version"] == MESSAGE_SCHEMA_VERSION == "1.5"
     assert out["wheel"] == wheel and out["timestamp"] == 1.7e9
     assert "wheel" in PassageResult.model_fields and "timestamp" in PassageResult.model_fields
 
