@@ -25,10 +25,17 @@ import json
 from functools import cache
 from importlib.metadata import PackageNotFoundError, version
 
+from schemas.calibration import CalibrationRef
 from schemas.diagnosis import ModelVersion
-from schemas.site import SiteConfig
+from schemas.site import SiteConfig, SiteFoundation
 
-__all__ = ["model_version", "package_version", "site_fingerprint"]
+__all__ = [
+    "calibration_ref",
+    "foundation_fingerprint",
+    "model_version",
+    "package_version",
+    "site_fingerprint",
+]
 
 NOT_PHYSICS = frozenset({"description", "schema_version"})
 """Fields of the site file that change no number of a diagnosis."""
@@ -49,6 +56,26 @@ def site_fingerprint(site: SiteConfig) -> str:
     doc = site.model_dump(mode="json", exclude=set(NOT_PHYSICS))
     text = json.dumps(doc, sort_keys=True, separators=(",", ":"), allow_nan=False)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def foundation_fingerprint(foundation: SiteFoundation) -> str:
+    """16 hex digits of the SHA-256 of the foundation's canonical JSON: a calibration's id.
+
+    >>> from schemas.scenario import RigidFoundation
+    >>> foundation_fingerprint(RigidFoundation(kind="rigid"))
+    '175c6a2aadc0f3b8'
+    """
+    doc = foundation.model_dump(mode="json")
+    text = json.dumps(doc, sort_keys=True, separators=(",", ":"), allow_nan=False)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def calibration_ref(site: SiteConfig) -> CalibrationRef:
+    """The calibration a diagnosis at ``site`` uses: the site file's ``[calibration]`` table,
+    or, without one, its foundation as drawn (``nominal``)."""
+    if site.calibration is not None:
+        return site.calibration.ref()
+    return CalibrationRef(source="nominal", id=foundation_fingerprint(site.foundation), wheels=0)
 
 
 def model_version(site: SiteConfig) -> ModelVersion:
