@@ -3,7 +3,9 @@ episode after the wheel is found round again."""
 
 from __future__ import annotations
 
-from service.fleet.alarms import apply
+from pathlib import Path
+
+from service.fleet.alarms import apply, evaluate_due
 from service.fleet.limits import FleetLimits
 from service.fleet.store import Store, open_store
 from tests.fleet_support import DAY, T0, make_entry
@@ -79,3 +81,24 @@ def test_a_wheel_found_round_starts_a_new_episode() -> None:
     s.insert([make_entry("a", "p2", day=9, verdict="inspect", length=0.044)])
     again = apply(s, "V1/1/left", LIMITS, horizon=1.0, now=T0 + 9 * DAY)
     assert [(a.level, a.episode) for a in again] == [("inspect", 1)]
+
+
+def test_a_stop_between_storing_and_evaluating_skips_no_escalation(tmp_path: Path) -> None:
+    """The fleet stores a diagnosis, then evaluates its wheel's alarms: a kill -9 between the
+    two leaves the wheel marked due, and the next start evaluates it before anything else, so
+    a later, higher verdict does not jump over the ``watch`` it missed."""
+    db = str(tmp_path / "fleet.db")
+    s = open_store(db)
+    s.insert([make_entry("s0", "p0", day=0, verdict="watch", length=0.031, half_width=0.01)])
+    assert s.wheels_due() == ["V1/1/left"]  # stored; the process dies before ``apply``
+    s.close()
+
+    s = open_store(db)  # the next start
+    restarted = evaluate_due(s, LIMITS, horizon=1.0, now=T0)
+    assert [(a.kind, a.level) for a in restarted] == [("verdict_escalated", "watch")]
+    assert s.wheels_due() == []
+    s.insert([make_entry("s1", "p1", day=1, verdict="inspect", length=0.041, half_width=0.01)])
+    later = apply(s, "V1/1/left", LIMITS, horizon=1.0, now=T0)
+    assert [(a.kind, a.level) for a in later] == [("verdict_escalated", "inspect")]
+    assert evaluate_due(s, LIMITS, horizon=1.0, now=T0) == []  # evaluated once, not twice
+    s.close()

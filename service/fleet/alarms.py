@@ -175,6 +175,19 @@ def apply(
         )  # and the primary key keeps them single
         if store.add_alarm(row):
             raised.append(a)
-    if (d.alarmed_level, d.episode) != (wheel.alarmed_level, wheel.episode):
-        store.set_wheel_alarm_state(wheel_id, d.alarmed_level, d.episode)
+    # always: it also records that the wheel's alarms were evaluated (no longer due)
+    store.set_wheel_alarm_state(wheel_id, d.alarmed_level, d.episode)
+    return raised
+
+
+def evaluate_due(
+    store: Store, limits: FleetLimits, horizon: float, now: float | None = None
+) -> list[FleetAlarm]:
+    """Evaluate every wheel whose diagnosis was stored and whose alarms were not (the
+    service stopped between ``Store.insert`` and ``apply``), oldest first, so that no
+    escalation is skipped: a ``watch`` stored before a kill -9 is raised at the next start,
+    not jumped over by the ``inspect`` that follows. The alarms newly raised."""
+    raised: list[FleetAlarm] = []
+    for wheel_id in store.wheels_due():
+        raised += apply(store, wheel_id, limits, horizon, now)
     return raised

@@ -162,6 +162,11 @@ MIGRATIONS: tuple[Migration, ...] = (
             "CREATE INDEX reanalysis_version ON reanalysis (site_id, model_version)",
         ),
     ),
+    Migration(
+        6,
+        "wheels whose alarms are due: a diagnosis stored, its alarms not yet evaluated",
+        ("ALTER TABLE wheel ADD COLUMN alarms_due INTEGER NOT NULL DEFAULT 0",),
+    ),
 )
 
 LATEST = MIGRATIONS[-1].version

@@ -38,7 +38,7 @@ import zenoh
 
 from schemas.fleet import FleetAlarm
 from service.fleet import keys
-from service.fleet.alarms import DEFAULT_HORIZON_DAYS, apply
+from service.fleet.alarms import DEFAULT_HORIZON_DAYS, apply, evaluate_due
 from service.fleet.entry import Entry, EntryError, entry_from_payload, speed_of_result
 from service.fleet.history import wheel_document
 from service.fleet.limits import FleetLimits
@@ -238,8 +238,22 @@ class FleetService:
         except queue.Full:
             self.counters.dropped += 1
 
+    def evaluate_due(self) -> list[FleetAlarm]:
+        """``alarms.evaluate_due`` on this service's store: the alarms of every wheel whose
+        diagnosis was stored and not evaluated (published by the outbox's next pass)."""
+        raised = evaluate_due(self.store, self.limits, self.horizon)
+        for a in raised:
+            self.counters.alarms += 1
+            _log_alarm("ALARM (evaluated after a restart)", a)
+        return raised
+
     def _ingest_loop(self) -> None:
         self._outbox_dirty = True  # on start: what the last run stored and did not publish
+        try:
+            self.evaluate_due()
+        except Exception as exc:  # the stored alarms' outbox still runs
+            self.counters.last_error = f"{type(exc).__name__}: {exc}"
+            log.exception("evaluating the alarms due after a restart failed")
         while not self._stop.is_set():
             if self._outbox_dirty and time.monotonic() >= self._outbox_retry_at:
                 self._drain_outbox(frozenset())

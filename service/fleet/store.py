@@ -74,8 +74,9 @@ ON CONFLICT (site_id) DO UPDATE SET
   last_timestamp = CASE WHEN excluded.last_timestamp >= site.last_timestamp
                         THEN excluded.last_timestamp ELSE site.last_timestamp END"""
 _WHEEL_UPSERT = """INSERT INTO wheel (wheel_id, vehicle_id, wheelset, side, last_timestamp,
-  last_verdict, alarmed_level, episode) VALUES (?, ?, ?, ?, ?, ?, 0, 0)
+  last_verdict, alarmed_level, episode, alarms_due) VALUES (?, ?, ?, ?, ?, ?, 0, 0, 1)
 ON CONFLICT (wheel_id) DO UPDATE SET
+  alarms_due = 1,
   last_verdict = CASE WHEN excluded.last_timestamp >= wheel.last_timestamp
                       THEN excluded.last_verdict ELSE wheel.last_verdict END,
   last_timestamp = CASE WHEN excluded.last_timestamp >= wheel.last_timestamp
@@ -352,12 +353,23 @@ class Store:
             )
 
     def set_wheel_alarm_state(self, wheel_id: str, alarmed_level: int, episode: int) -> None:
+        """The wheel's alarm state after an evaluation; its alarms are no longer due."""
         with self._transaction() as cur:
             self._exec(
                 cur,
-                "UPDATE wheel SET alarmed_level = ?, episode = ? WHERE wheel_id = ?",
+                "UPDATE wheel SET alarmed_level = ?, episode = ?, alarms_due = 0 "
+                "WHERE wheel_id = ?",
                 (alarmed_level, episode, wheel_id),
             )
+
+    def wheels_due(self, limit: int = 10_000) -> list[str]:
+        """Wheels with a diagnosis stored whose alarms were not evaluated (the service
+        stopped between the two): the oldest first, at most ``limit``."""
+        rows = self._rows(
+            "SELECT wheel_id FROM wheel WHERE alarms_due = 1 ORDER BY last_timestamp LIMIT ?",
+            (limit,),
+        )
+        return [str(r[0]) for r in rows]
 
     def add_alarm(self, row: AlarmRow) -> bool:
         """Record an alarm; False if this (wheel, kind, level, episode) was raised before."""
