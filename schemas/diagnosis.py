@@ -233,6 +233,28 @@ class Diagnosis(VersionedMessage):
         default=None,
         description="upper end of the line-speed forecast (as _low, the largest), N",
     )
+    peak_channel_at_line_speed: Finite | None = Field(
+        default=None,
+        description="schema 1.5, channel measurements: the detector's peak at line_speed as "
+        "its channels would show it (the largest of the cribs' channels through the site's "
+        "chain at its sample instants), of the fitted wheel; peak_force_at_line_speed is "
+        "then the contact force's peak, N",
+    )
+    peak_channel_at_line_speed_low: Finite | None = Field(
+        default=None,
+        description="schema 1.5: lower end of the detector peak's line-speed band (as "
+        "peak_force_at_line_speed_low), N",
+    )
+    peak_channel_at_line_speed_high: Finite | None = Field(
+        default=None,
+        description="schema 1.5: upper end of the detector peak's line-speed band, N",
+    )
+    measured: Literal["force", "channels"] | None = Field(
+        default=None,
+        description="schema 1.5: what the site measured: the contact force, or the "
+        "detector's crib channels (then peak_force_measured is the largest channel value "
+        "and peak_force_fit the fitted wheel's contact peak); null in older messages",
+    )
     noise_level: NonNegative | None = Field(
         default=None,
         description="σ of the measurement's white noise estimated from the record itself "

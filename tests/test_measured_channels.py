@@ -1,9 +1,11 @@
 """Channels in, everywhere (issue 26, item 1): a measured passage of a detector's crib
 channels in the contract, read from a CSV, checked against the site's cribs by
-``railtwin diagnose``, ``railtwin feed-measured`` and the twin's pairing, and refused
-clearly (the diagnosis from crib channels is not available yet), never diagnosed.
+``railtwin diagnose``, ``railtwin feed-measured`` and the twin's pairing: ids that are not
+the site's cribs are refused clearly, valid channels go on to the diagnosis
+(``tests/test_diagnosis_channels.py`` has the fit itself).
 
-Fast: no physics runs here (the twin runs the stand-in ``StubPhysics``). The real channel
+Fast: no track simulation runs here (the twin runs the stand-in ``StubPhysics``; the
+command's round wheel is dismissed by the screen). The real channel
 record is site S01's passage P01 of the handed-over ``track-sites`` data
 (``tests/data/track-sites/README.md``).
 """
@@ -35,11 +37,7 @@ from service.recording.recorder_process import ProcessRecorder, RecordingPlan
 from service.twin.twin import Twin
 from service.wire.encoding import json_encoding
 from service.wire.keyspace import SiteKeys
-from service.wire.measured_channels import (
-    CHANNELS_NOT_DIAGNOSED,
-    channel_mismatch,
-    channels_mismatch,
-)
+from service.wire.measured_channels import channel_mismatch, channels_mismatch
 from service.wire.site import load_site
 from service.wire.zenoh_session import build_config, free_tcp_endpoint
 from tests import test_service_channels as detector_site
@@ -227,12 +225,15 @@ def diagnose(tmp_path: Path, csv: Path, capsys: pytest.CaptureFixture[str]) -> t
     return code, err[0]
 
 
-def test_diagnose_says_the_diagnosis_from_channels_is_not_available_yet(
+def test_diagnose_diagnoses_a_round_wheel_from_its_channels(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    code, err = diagnose(tmp_path, CSV, capsys)
-    assert code == 2
-    assert f"invalid measurement {CSV}: channels: {CHANNELS_NOT_DIAGNOSED}" in err
+    out = tmp_path / "d.json"
+    files = ["--site", str(SITE), "--passage", str(PASSAGE), "--measured", str(CSV)]
+    assert cli_main(["diagnose", *files, "--out", str(out), "--format", "json"]) == 0
+    d = json.loads(out.read_text())
+    assert d["measured"] == "channels" and d["flat"] is None and d["verdict"] == "ok"
+    assert d["calibration"]["source"] == "nominal"
 
 
 def test_diagnose_names_the_missing_and_extra_channels(
@@ -361,7 +362,8 @@ def twin_answers(tmp_path: Path) -> Iterator[tuple[Answers, list[str], Health]]:
             ppub.put(detector_site.passage("p3").model_dump_json())
             mpub.put(force.model_dump_json())
             mpub.put(right.model_dump_json())
-            answers.wait(results=2, errors=3)
+            ppub.put(detector_site.passage("p2").model_dump_json())
+            answers.wait(results=3, errors=3)
             time.sleep(0.1)  # and nothing more
             (reply,) = [r for r in client.get(keys.health, timeout=5.0) if r.ok]
             health = Health.model_validate_json(reply.ok.payload.to_bytes())
@@ -380,16 +382,18 @@ def test_the_twin_rejects_channels_clearly_and_loses_nothing_else(
     assert sorted(by_id) == ["p1", "p2", "p3"]
     wrong, right = by_id["p1"], by_id["p2"]
     assert wrong.kind == right.kind == "invalid_measurement"
-    assert wrong.field == right.field == "channels"
+    assert wrong.field == "channels" and right.field == "force"  # the spy's field
     assert wrong.message == (
         "measurement of p1 rejected: channels: the ids must be the site's detector cribs "
         "ch1, ch2: missing ch2; extra ch3"
     )
-    assert right.message == f"measurement of p2 rejected: channels: {CHANNELS_NOT_DIAGNOSED}"
-    # the contact-force measurement went on to the diagnosis, and the passages were served
-    assert asked == ["p3"] and "the spy does not diagnose" in by_id["p3"].message
-    assert sorted(answers.results) == ["p0", "p3"]
-    assert health.errors == 3 + answers.probes and health.passages_done == 2
+    # the valid channels and the contact force went on to the diagnosis (the spy's error),
+    # and the passages were served
+    assert asked == ["p3", "p2"]
+    assert "the spy does not diagnose" in by_id["p3"].message
+    assert "the spy does not diagnose" in right.message
+    assert sorted(answers.results) == ["p0", "p2", "p3"]
+    assert health.errors == 3 + answers.probes and health.passages_done == 3
     logged = [m for m in read_log(sorted(tmp_path.glob("*.mcap")))]
     measured_logged = [
         MeasuredPassage.model_validate_json(m.data).passage_id

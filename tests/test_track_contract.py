@@ -564,14 +564,16 @@ def test_the_contract_and_sim_core_agree_on_cribs(
     assert accepted == agreed
 
 
-def test_the_diagnosis_refuses_a_site_on_a_track() -> None:
+def test_the_diagnosis_refuses_a_contact_force_on_a_track() -> None:
+    """On a track the diagnosis fits crib channels (``tests/test_diagnosis_channels.py``);
+    a contact force it fits on a rigid or one-mass foundation only."""
     from schemas.messages import WheelPassage
     from service.physics.diagnosis import Diagnoser
     from service.physics.measurement_error import MeasurementError
 
     site = SiteConfig.model_validate(copy.deepcopy(SITE))
     d = Diagnoser(site)
-    assert not d.diagnoses_here and d.warm_up() == 0.0
+    assert d.diagnoses_here == (d.crib_site is not None)
     passage = WheelPassage(
         passage_id="p1",
         train_id="t1",

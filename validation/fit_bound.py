@@ -126,7 +126,7 @@ def fit_row(case_id: str) -> FitRow | None:
             "speed_kmh": c.passage.speed * 3.6,
             "true_damping_ratio": c.zeta,
             **fitted_fields(diag, curves, 0.0),
-            **costs_of(curves.estimate, d.options),
+            **costs_of(curves.force_estimate, d.options),
         }
     )
 

@@ -62,7 +62,7 @@ def cost_fields(
     and ``cost_bound`` (J_max / J_best of the interval); all None where the fit compares no
     windows (a record the screen dismissed)."""
     _, curves = d.diagnose(passage, measured, compare=[(kind, length, depth_factor)])
-    return costs_of(curves.estimate, d.options)
+    return costs_of(curves.force_estimate, d.options)
 
 
 def costs_of(est: FlatEstimate, options: FitOptions) -> dict[str, Any]:

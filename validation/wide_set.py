@@ -127,7 +127,7 @@ def run_case(c: WideCase) -> dict[str, Any]:
 def fitted_fields(diag: Diagnosis, curves: FitCurves, cpu: float) -> dict[str, Any]:
     """The columns of a validation row that come from the diagnosis (both sources)."""
     found = diag.flat
-    est = curves.estimate
+    est = curves.force_estimate
     return {
         "fitted_damping_ratio": est.damping_ratio,
         "found_kind": found.kind if found else None,

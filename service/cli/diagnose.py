@@ -7,9 +7,10 @@ The passage is a ``WheelPassage`` JSON file (speed, load, mass, radius; its outl
 ignored: finding the flat is the point); the measurement a CSV (``t_s,force_N``, or
 ``t_s`` then one column per crib id of the site's detector) or a railtwin MCAP log holding
 the passage's ``MeasuredPassage``. Prints a short table (or the Diagnosis JSON with
-``--format json``) and writes the Diagnosis JSON to ``--out``. The diagnosis fits a
-contact force: crib channels are read and checked against the site's cribs, then refused
-(exit 2: the diagnosis from crib channels is not available yet).
+``--format json``) and writes the Diagnosis JSON to ``--out``. A contact force is fitted at a
+rigid or compliant site; crib channels, checked against the site's cribs, at a site whose
+rail lies on discrete supports or slab (the twin simulates the cribs through the site's
+chain). The Diagnosis names the calibration of the track it used.
 Exit status: 0 done (whatever the verdict), 1 the fit failed, 2 invalid input.
 """
 
@@ -82,7 +83,10 @@ def table(d: Diagnosis) -> str:
             ("phase", f"{f.phase:.3f} rad"),
         ]
     rows += [
-        ("peak force measured", f"{d.peak_force_measured * kn:.1f} kN"),
+        (
+            "peak channel measured" if d.measured == "channels" else "peak force measured",
+            f"{d.peak_force_measured * kn:.1f} kN",
+        ),
         ("peak force of the fit", f"{d.peak_force_fit * kn:.1f} kN"),
         ("fit rms", f"{d.fit_rms * kn:.1f} kN"),
         (
@@ -97,12 +101,33 @@ def table(d: Diagnosis) -> str:
                 f"{d.peak_force_at_line_speed_high * kn:.0f}] kN"
             ),
         ),
+        *(
+            [
+                (
+                    "detector peak at line speed",
+                    f"{d.peak_channel_at_line_speed * kn:.1f} kN"
+                    + (
+                        ""
+                        if d.peak_channel_at_line_speed_low is None
+                        or d.peak_channel_at_line_speed_high is None
+                        else f" [{d.peak_channel_at_line_speed_low * kn:.0f}, "
+                        f"{d.peak_channel_at_line_speed_high * kn:.0f}] kN"
+                    ),
+                )
+            ]
+            if d.peak_channel_at_line_speed is not None
+            else []
+        ),
         (
             "explained",
             "—"
             if d.explained is None
             else f"{'yes' if d.explained else 'NO'} (residual {d.fit_residual_ratio or 0:.1f} x the "
             f"record's noise {(d.noise_level or 0) * kn:.2f} kN)",
+        ),
+        (
+            "calibration",
+            "—" if d.calibration is None else f"{d.calibration.source} {d.calibration.id}",
         ),
         ("wall time", f"{d.wall_time:.2f} s"),
     ]
@@ -127,11 +152,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     from service.cli.inputs import load_json_file, load_site_file
     from service.clients.measured_io import MeasuredFileError, read_measured
     from service.physics.diagnosis import Diagnoser, IntegrationError, MeasurementError
-    from service.wire.measured_channels import (
-        CHANNELS_FIELD,
-        CHANNELS_NOT_DIAGNOSED,
-        channels_mismatch,
-    )
+    from service.wire.measured_channels import CHANNELS_FIELD, channels_problem
 
     site = load_site_file(args.site)
     passage = load_json_file(args.passage, "passage", WheelPassage)
@@ -141,8 +162,8 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
         )
     except MeasuredFileError as exc:
         raise CommandError(str(exc), EXIT_USAGE) from None
-    if measured.channels is not None:  # refused before any physics is built
-        problem = channels_mismatch(measured, site) or CHANNELS_NOT_DIAGNOSED
+    problem = channels_problem(measured, site)
+    if problem is not None:  # refused before any physics is built
         raise CommandError(
             f"invalid measurement {args.measured}: {CHANNELS_FIELD}: {problem}", EXIT_USAGE
         )

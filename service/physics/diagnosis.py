@@ -5,6 +5,13 @@ wheel's constraint, kept per radius), contact law, foundation and measuring chai
 (``[diagnosis]``), and the limits that make the verdict. Bad measurements are refused
 with ``MeasurementError`` naming the field; the service turns it into a ServiceError,
 the CLI into exit status 2.
+
+Two measurements, two fits: a contact force on a rigid or compliant (one-mass) site
+(``sim_core.diagnosis.estimate``), or a detector's crib channels on a rail on discrete
+supports or slab (``sim_core.diagnosis.crib_fit``: the twin simulates the site's cribs
+through the site's chain on the site file's track). Every ``Diagnosis`` names the
+calibration of the track it used (``calibration_ref``); ``Diagnoser.recalibrated`` swaps in
+a site file with a new foundation or calibration at run time.
 """
 
 from __future__ import annotations
@@ -22,13 +29,12 @@ from schemas.messages import WheelPassage
 from schemas.site import SiteConfig
 from service.physics import inputs as physics_inputs
 from service.physics.measurement_error import MeasurementError
-from service.physics.model_version import model_version
+from service.physics.model_version import calibration_ref, model_version
 from service.physics.site_physics import SitePhysics
-from service.wire.measured_channels import (
-    CHANNELS_FIELD,
-    CHANNELS_NOT_DIAGNOSED,
-    channels_mismatch,
-)
+from service.wire.measured_channels import CHANNELS_FIELD, channels_mismatch
+from sim_core.diagnosis.crib_fit import CribEstimate, fit_channels
+from sim_core.diagnosis.crib_forward import CribSite, CribWheel, line_times
+from sim_core.diagnosis.crib_screen import round_template
 from sim_core.diagnosis.estimate import (
     DEFAULT_OPTIONS,
     EXPLAINED_RATIO,
@@ -52,6 +58,7 @@ from sim_core.diagnosis.forward import (
 from sim_core.diagnosis.sensor import SensorModel
 from sim_core.diagnosis.verdict import Limits, verdict
 from sim_core.passage import IntegrationError
+from sim_core.track.spec import TrackSpec
 
 __all__ = ["EXPLAINED_RATIO", "Diagnoser", "FitCurves", "IntegrationError", "MeasurementError"]
 
@@ -78,7 +85,16 @@ class FitCurves:
     measured: NDArray[np.float64]
     fitted: NDArray[np.float64]
     impacts_t: NDArray[np.float64]
-    estimate: FlatEstimate
+    estimate: FlatEstimate | CribEstimate
+    """The fit's own answer: a ``FlatEstimate`` for a contact force, a ``CribEstimate``
+    for channels (``force_estimate`` narrows to the first)."""
+
+    @property
+    def force_estimate(self) -> FlatEstimate:
+        """``estimate`` of a contact-force fit (``TypeError`` for a channel fit)."""
+        if not isinstance(self.estimate, FlatEstimate):
+            raise TypeError("FitCurves: a channel fit has no FlatEstimate")
+        return self.estimate
 
 
 class Diagnoser:
@@ -101,7 +117,16 @@ class Diagnoser:
         cfg = site.diagnosis
         self.sensor = SensorModel(cfg.sensor_lowpass_hz, cfg.sensor_lowpass_order)
         self.model_version = model_version(site)
+        self.calibration = calibration_ref(site)
         self.rails = RailTables(self.physics.base_rail)
+        self.cores = cores
+        # the detector on the site's track, where the rail lies on supports and has cribs
+        found = self.physics.foundation
+        self.crib_site = (
+            CribSite(found, self.physics.cribs, self.sensor, site.length)
+            if isinstance(found, TrackSpec) and self.physics.cribs
+            else None
+        )
         self.limits = Limits(
             cfg.watch_force,
             cfg.inspect_force,
@@ -113,9 +138,25 @@ class Diagnoser:
 
     @property
     def diagnoses_here(self) -> bool:
-        """Whether this site's foundation is one the fit models (rigid or one mass on a
-        spring): a rail on discrete supports is not, yet (``wheel`` refuses it)."""
-        return physics_inputs.lumped(self.physics.foundation) is not None
+        """Whether this site's measurements can be diagnosed: a contact force on a rigid or
+        one-mass foundation, or crib channels on a rail on supports with a detector."""
+        return (
+            physics_inputs.lumped(self.physics.foundation) is not None or self.crib_site is not None
+        )
+
+    def recalibrated(self, site: SiteConfig) -> Diagnoser:
+        """A diagnoser for ``site``: the same site with a new foundation or ``[calibration]``
+        (``railtwin calibrate``'s file, or the twin's online calibration). Every later
+        ``Diagnosis`` names the new calibration. The site's rail physics are rebuilt (the
+        dents the twin tracks live in ``SitePhysics``, not here); this instance is left as it
+        was, so a diagnosis under way finishes on the calibration it started with.
+        The track's reduction to modes is redone for a new track (seconds, once; ``warm_up``
+        does it ahead of the first wheel)."""
+        if site.site_id != self.site.site_id:
+            raise ValueError(
+                f"Diagnoser.recalibrated: site {site.site_id!r} is not {self.site.site_id!r}"
+            )
+        return Diagnoser(site, cores=self.cores)
 
     def warm_up(self) -> float:
         """Diagnose one synthetic flat wheel (compiles the fit's kernels); returns seconds.
@@ -126,6 +167,10 @@ class Diagnoser:
         if not self.diagnoses_here:
             return 0.0
         start = time.perf_counter()
+        if self.crib_site is not None:
+            self.crib_site.prepare()
+            if physics_inputs.lumped(self.physics.foundation) is None:
+                return time.perf_counter() - start
         probe = WheelPassage(
             passage_id="warm-up",
             train_id="warm-up",
@@ -173,13 +218,20 @@ class Diagnoser:
         )
 
     def check_channels(self, measured: MeasuredPassage) -> None:
-        """Refuse a channel measurement (``MeasurementError``, field ``channels``): one whose
-        ids are not the site's cribs with what differs, a valid one because the diagnosis
-        from crib channels is not available yet. A contact-force measurement passes."""
+        """Refuse a channel measurement whose ids are not the site's cribs, or one at a site
+        the channels cannot be fitted (``MeasurementError``, field ``channels``). A
+        contact-force measurement passes."""
         if measured.channels is None:
             return
         mismatch = channels_mismatch(measured, self.site)
-        raise MeasurementError(CHANNELS_FIELD, mismatch or CHANNELS_NOT_DIAGNOSED)
+        if mismatch is not None:
+            raise MeasurementError(CHANNELS_FIELD, mismatch)
+        if self.crib_site is None:
+            raise MeasurementError(
+                CHANNELS_FIELD,
+                f"the site's foundation is {self.site.foundation.kind!r}: crib channels are "
+                "fitted on a rail on discrete supports or slab only",
+            )
 
     def check(self, passage: WheelPassage, measured: MeasuredPassage) -> float:
         """Refuse what cannot be diagnosed; returns the speed to use (m/s)."""
@@ -232,9 +284,14 @@ class Diagnoser:
                 f"{measured.t_start + measured.duration:g}] s covers less than "
                 f"{MIN_RECORD_FRACTION:.0%} of the wheel's time on the site [0, {on_site:g}] s",
             )
-        f = np.asarray(measured.force, dtype=np.float64)
-        if float(np.ptp(f)) == 0.0:
-            raise MeasurementError("force", "the record is constant: no sensor signal")
+        if measured.force is not None:
+            f = np.asarray(measured.force, dtype=np.float64)
+            if float(np.ptp(f)) == 0.0:
+                raise MeasurementError("force", "the record is constant: no sensor signal")
+        else:
+            chans = measured.channels or {}
+            if all(float(np.ptp(np.asarray(v))) == 0.0 for v in chans.values()):
+                raise MeasurementError(CHANNELS_FIELD, "every channel is constant: no signal")
         return speed
 
     def diagnose(
@@ -248,7 +305,9 @@ class Diagnoser:
         ``compare``: flats (kind, length, depth factor) whose cost on the fit's own windows
         comes back in ``FitCurves.estimate.compared`` (validation compares the truth's)."""
         start = time.perf_counter()
-        self.check_channels(measured)  # first: the channels are not fitted yet
+        self.check_channels(measured)  # first: ids that are not the site's cribs
+        if measured.channels is not None:
+            return self._diagnose_channels(passage, measured, start)
         wheel = self.wheel(passage)  # then: a site the fit does not model refuses any record
         speed = self.check(passage, measured)
         t = measured.t_start + np.arange(measured.samples) / measured.sample_rate
@@ -361,8 +420,163 @@ class Diagnoser:
             explained=explained,
             wall_time=time.perf_counter() - start,
             model_version=self.model_version,
+            calibration=self.calibration,
+            measured="force",
         )
         return diag, FitCurves(t, t * est.speed, f, fitted, impacts, est)
+
+    def _diagnose_channels(
+        self, passage: WheelPassage, measured: MeasuredPassage, start: float
+    ) -> tuple[Diagnosis, FitCurves]:
+        """The diagnosis from the detector's crib channels (``sim_core.diagnosis.crib_fit``)."""
+        cs = self.crib_site
+        assert cs is not None  # check_channels refused the measurement otherwise
+        speed = self.check(passage, measured)
+        channels = measured.channels or {}
+        t = measured.t_start + np.arange(measured.samples) / measured.sample_rate
+        chans = np.array([channels[c.id] for c in cs.cribs], dtype=np.float64)
+        wheel = CribWheel(
+            passage.mass, passage.load, passage.radius, self.physics.contact_model(passage)
+        )
+        est = fit_channels(cs, wheel, speed, t, chans)
+        cfg = self.site.diagnosis
+        flat = est.flat
+        noise = est.noise
+        ratio = residual_ratio(est.fit_rms, noise)
+        explained = explains(est.fit_rms, noise)
+        line: tuple[float | None, ...] = (None,) * 6
+        unsimulated = False
+        if cfg.line_speed is not None:
+            line = self._channel_line(cs, wheel, cfg.line_speed, est, measured.sample_rate)
+            unsimulated = line[0] is None
+        at_line, line_low, line_high, ch_line, ch_low, ch_high = line
+        peak_measured = float(np.max(chans))
+        worst_len = est.length_high if flat is not None else None
+        if explained:
+            level, reasons = verdict(
+                self.limits,
+                peak_measured,
+                at_line if at_line is not None else line_high,
+                flat.length if flat is not None else None,
+                cfg.line_speed,
+                worst_len,
+            )
+        else:
+            level, reasons = verdict(
+                self.limits, peak_measured, line_high, worst_len, cfg.line_speed
+            )
+            reasons.insert(
+                0,
+                f"the fit does not explain the channels (residual {est.fit_rms / 1e3:.1f} kN "
+                f"rms = {ratio:.1f} x the record's noise {noise / 1e3:.2f} kN > "
+                f"{EXPLAINED_RATIO:g}): verdict from the measured peaks"
+                + (
+                    ", the upper end of the length interval and of the line-speed forecast"
+                    if flat is not None
+                    else ""
+                ),
+            )
+        if unsimulated:
+            reasons.append(
+                "the line-speed forecast could not be simulated (the integrator did not "
+                "resolve it): the verdict stands on the measured peaks and the length"
+            )
+        finding = None
+        if flat is not None:
+            finding = FlatFinding(
+                kind=flat.kind,
+                length=flat.length,
+                depth=flat.depth,
+                phase=flat.phase,
+                length_low=est.length_low,
+                length_high=est.length_high,
+                depth_factor=1.0,
+            )
+        impacts = (
+            flat_times(passage.radius, speed, flat.phase, float(t[0]), float(t[-1]))
+            if flat is not None
+            else np.empty(0)
+        )
+        diag = Diagnosis(
+            site_id=self.site.site_id,
+            passage_id=passage.passage_id,
+            flat=finding,
+            verdict=level,  # type: ignore[arg-type]
+            reasons=reasons,
+            peak_force_measured=peak_measured,
+            peak_force_fit=est.peak_force_fit,
+            fit_rms=est.fit_rms,
+            peak_force_at_line_speed=at_line,
+            peak_force_at_line_speed_low=line_low,
+            peak_force_at_line_speed_high=line_high,
+            peak_channel_at_line_speed=ch_line,
+            peak_channel_at_line_speed_low=ch_low,
+            peak_channel_at_line_speed_high=ch_high,
+            measured="channels",
+            noise_level=noise,
+            fit_residual_ratio=ratio if math.isfinite(ratio) else None,
+            explained=explained,
+            wall_time=time.perf_counter() - start,
+            model_version=self.model_version,
+            calibration=self.calibration,
+        )
+        curves = FitCurves(
+            t, t * speed, np.sum(chans, axis=0), np.sum(est.fitted, axis=0), impacts, est
+        )
+        return diag, curves
+
+    def _channel_line(
+        self,
+        cs: CribSite,
+        wheel: CribWheel,
+        line_speed: float,
+        est: CribEstimate,
+        sample_rate: float,
+    ) -> tuple[float | None, float | None, float | None, float | None, float | None, float | None]:
+        """(contact point, low, high, detector point, low, high) at line speed: the fitted
+        flat re-simulated over the site's record window [0, length] on the site's track
+        (same phase: the impacts fall where they fell), the band over the length interval's
+        ends and the other kind at the fitted length. A round wheel's forecast is its static
+        load and its round template's peak (no simulation: the twin's rail is even)."""
+        t_line = line_times(self.site.length, line_speed, sample_rate)
+        if est.flat is None:
+            tpl = round_template(cs.cribs, line_speed, wheel.load, t_line, cs.sensor)
+            p, c = wheel.load, float(np.max(tpl))
+            return p, p, p, c, c, c
+        flat = est.flat
+        other: FlatKind = "rounded_flat" if flat.kind == "flat" else "flat"
+        from sim_core.diagnosis.crib_fit import flat_of
+
+        runs = [
+            flat,
+            flat_of(wheel.radius, flat.kind, max(est.length_low, 1e-3), flat.phase),
+            flat_of(wheel.radius, flat.kind, est.length_high, flat.phase),
+            flat_of(wheel.radius, other, flat.length, flat.phase),
+        ]
+        contact: list[float | None] = []
+        detector: list[float | None] = []
+        for f in runs:
+            try:
+                got = cs.run(wheel, line_speed, f, t_line, line=True, measurement_rate=sample_rate)
+            except IntegrationError:
+                contact.append(None)
+                detector.append(None)
+                continue
+            on_site = got.t * line_speed >= 0.0
+            contact.append(float(np.max(got.force[on_site])))
+            detector.append(float(np.max(got.channels)))
+        cp = [p for p in contact if p is not None]
+        dp = [p for p in detector if p is not None]
+        if not cp:
+            return None, None, None, None, None, None
+        return (
+            contact[0],
+            min(cp),
+            max(cp),
+            detector[0],
+            min(dp),
+            max(dp),
+        )
 
     def line_peak(
         self, wheel: WheelOnSite, line_speed: float, flat: Flat | None, sample_rate: float

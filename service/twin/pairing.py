@@ -4,9 +4,11 @@ either order of arrival), diagnosed through the physics port, the ``Diagnosis`` 
 A measurement whose passage has not come within the site's ``diagnosis.pairing_timeout`` gets
 an ``unpaired`` ServiceError; a bad or duplicate one an ``invalid_measurement`` one
 (``invalid_json`` if not JSON). A measurement of crib channels gets an
-``invalid_measurement`` one (field ``channels``) as soon as it arrives: naming the missing
-and extra ids if they are not the site's cribs, else saying that the diagnosis from crib
-channels is not available yet. Every rejection is logged and counted; nothing else waits.
+``invalid_measurement`` one (field ``channels``) as soon as it arrives if its ids are not
+the site's cribs (naming the missing and extra ids) or the site's rail is not modelled (a
+rigid or compliant site); valid channels are paired and diagnosed like a force (the
+diagnosis fits the twin's crib channels, ``service.physics.diagnosis``). Every rejection is
+logged and counted; nothing else waits.
 """
 
 from __future__ import annotations
@@ -34,11 +36,7 @@ from service.twin.inbound import Inbound
 from service.twin.intake import refused_unread
 from service.twin.kept_passages import KeptPassages
 from service.twin.output import Output
-from service.wire.measured_channels import (
-    CHANNELS_FIELD,
-    CHANNELS_NOT_DIAGNOSED,
-    channels_mismatch,
-)
+from service.wire.measured_channels import CHANNELS_FIELD, channels_problem
 
 MAX_WAITING_MEASUREMENTS = 1_000
 """Measurements waiting for their passage; beyond, the oldest is dropped as unpaired."""
@@ -115,8 +113,8 @@ class Pairing:
             return
         out.log_input(item, measured)
         pid = measured.passage_id
-        if measured.channels is not None:  # the site's cribs, or not diagnosable yet
-            problem = channels_mismatch(measured, self.site) or CHANNELS_NOT_DIAGNOSED
+        problem = channels_problem(measured, self.site)
+        if problem is not None:  # not the site's cribs, or no modelled rail to fit them on
             self._error(
                 item,
                 "invalid_measurement",

@@ -5,9 +5,9 @@ in any order. ``channels_mismatch`` says what is wrong in one line, or None: the
 it into exit status 2, the twin into an ``invalid_measurement`` ServiceError (field
 ``channels``), the diagnoser into a ``MeasurementError``.
 
-The diagnosis does not fit channels yet (it fits the contact force on a rigid or compliant
-foundation): a valid channel measurement is answered with ``CHANNELS_NOT_DIAGNOSED``,
-never with a diagnosis.
+Channels are fitted on a rail on discrete supports or slab (the twin simulates the cribs
+there); at a site on a rigid or compliant foundation a channel measurement is answered with
+``CHANNELS_NEED_TRACK`` (``channels_problem`` says either).
 
     >>> from schemas.diagnosis import MeasuredPassage
     >>> m = MeasuredPassage(passage_id="p", sample_rate=1e4, t_start=0.0,
@@ -25,11 +25,11 @@ from schemas.site import SiteConfig
 
 CHANNELS_FIELD = "channels"
 
-CHANNELS_NOT_DIAGNOSED = (
-    "diagnosis from crib channels is not available yet: railtwin diagnoses a measured "
-    "contact force (t_s,force_N) on a rigid or compliant foundation only"
+CHANNELS_NEED_TRACK = (
+    "crib channels are diagnosed on a rail on discrete supports or slab only: at a rigid or "
+    "compliant site measure the contact force (t_s,force_N)"
 )
-"""The answer to a valid channel measurement (docs/service.md, docs/CONTRACT.md)."""
+"""The answer to channels at a site whose rail is not modelled (docs/service.md)."""
 
 
 def site_cribs(site: SiteConfig) -> tuple[str, ...]:
@@ -62,3 +62,14 @@ def channels_mismatch(measured: MeasuredPassage, site: SiteConfig) -> str | None
     if measured.channels is None:
         return None
     return channel_mismatch(measured.channel_ids, site_cribs(site))
+
+
+def channels_problem(measured: MeasuredPassage, site: SiteConfig) -> str | None:
+    """Why ``measured``'s channels cannot be diagnosed at ``site`` (ids that are not its
+    cribs, or a site whose rail is not modelled), in one line, or None."""
+    mismatch = channels_mismatch(measured, site)
+    if mismatch is not None or measured.channels is None:
+        return mismatch
+    if site.foundation.kind not in ("discrete", "slab"):
+        return CHANNELS_NEED_TRACK
+    return None

@@ -1,0 +1,352 @@
+"""The fit from crib channels: which flat makes the twin's channels look like the measured ones.
+
+The twin simulates the wheel on the site's track with the site's cribs and chain
+(``crib_forward``); a candidate is a flat's kind, length and phase. Each forward run costs
+tens to hundreds of ms (13 runs a flat wheel), so the search is short and driven by what
+the record shows:
+
+1. **Screen** (``crib_screen``, no simulation): a record within the round wheel's allowance
+   of the round template is dismissed.
+2. **Where the flat hits.** The record's excess over the round template (summed over the
+   cribs) peaks where an impact falls inside a crib. Its largest peak fixes the impact
+   time t* in the record; the other turns follow every 2πR/V. A candidate's phase puts its
+   own simulated peak on t*: the first run of each kind guesses the impact's lag behind the
+   flat's centre (l/2 of travel plus the chain's delay), each run measures it again (step
+   3), and the next run uses it. All turns are compared at once (the phase is one unknown).
+3. **Kind and length.** Each kind is run at the lengths of ``LENGTH_GRID``. A run's
+   excess is aligned with the measured one (the cross-correlation's peak over the
+   windows); the cost, the sum of squared channel differences over windows around the
+   measured impacts (every crib), is taken on the run shifted by that delay, so that the
+   cost does not jump with a phase that is a fraction of a millisecond off, and the next
+   run of the kind starts from the aligned phase.
+4. **Refinement and interval.** The kind of the cheapest run wins; a parabola through its
+   cost at the best length and its grid neighbours (in log length) gives the length, one
+   more run there the final phase, and the length interval is where the parabola stays
+   within the χ² bound J <= J_min·(1 + 3.84/(``DOF_PER_WINDOW``·windows)) (the residual is
+   model error correlated over a window, as in ``estimate``).
+
+A worn flat's depth is taken as l²/16R (depth factor 1); the length absorbs a deeper or
+shallower flat. docs/diagnosis.md has the method and the validation on independent data.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sim_core.diagnosis.crib_forward import CribRun, CribSite, CribWheel
+from sim_core.diagnosis.crib_screen import Screen, round_template, screen
+from sim_core.diagnosis.forward import Flat, FlatKind, ideal_flat_depth, typical_rounded_depth
+from sim_core.passage import IntegrationError
+from sim_core.wheel import TWO_PI
+
+__all__ = ["DOF_PER_WINDOW", "LENGTH_GRID", "CribEstimate", "fit_channels", "flat_of"]
+
+KINDS: tuple[FlatKind, ...] = ("flat", "rounded_flat")
+
+LENGTH_GRID = (0.015, 0.025, 0.04, 0.06, 0.09, 0.13)
+"""m: the lengths tried for each kind (about 1.6 apart: the cost's parabola in log length
+through three of them refines the best)."""
+
+LENGTH_RANGE = (0.008, 0.16)
+"""m: the lengths the search may try."""
+
+PROFILE_STEP = 0.12
+"""Relative length step either side of the best for the cost's parabola."""
+
+DOF_PER_WINDOW = 2.0
+"""Degrees of freedom of the model error per compared window (χ² bound of the interval)."""
+
+WINDOW_BEFORE = 0.15
+"""m of travel before a measured impact that its window covers (the longest flat's dip)."""
+
+WINDOW_AFTER = 0.008
+"""s after a measured impact that its window covers (the impact and the first rebound)."""
+
+MAX_SHIFT = 40
+"""Samples either way over which a candidate's excess is aligned with the measured one."""
+
+PEAK_SEARCH = 0.25
+"""Fraction of a turn around t* searched for a candidate's own peak."""
+
+
+def flat_of(radius: float, kind: FlatKind, length: float, phase: float) -> Flat:
+    """The candidate flat: a fresh chord or a worn flat of depth l²/16R."""
+    if kind == "flat":
+        return Flat("flat", length, ideal_flat_depth(radius, length), phase % TWO_PI)
+    return Flat("rounded_flat", length, typical_rounded_depth(radius, length), phase % TWO_PI)
+
+
+@dataclass(frozen=True)
+class Trial:
+    """One forward run of the search: the candidate, its cost and its excess peak."""
+
+    kind: FlatKind
+    length: float
+    phase: float
+    cost: float
+    peak_excess: float
+    peak_force: float
+    run: CribRun = field(repr=False)
+
+
+@dataclass(frozen=True)
+class CribEstimate:
+    """What the fit found (``flat`` None: a round wheel, dismissed by the screen or because
+    no flat explains the record better than the round template).
+
+    ``cost_*`` are sums of squared channel differences over the ``n_samples`` compared
+    (N²); ``fitted`` the best candidate's channels at the record's instants (rows per crib);
+    ``peak_force_fit`` its contact peak over the fit stretch; ``runs`` the forward runs."""
+
+    flat: Flat | None
+    best_kind: FlatKind | None
+    length_low: float
+    length_high: float
+    cost_round: float
+    cost_best: float
+    n_samples: int
+    windows: int
+    noise: float
+    screen: Screen
+    runs: int
+    fitted: NDArray[np.float64] = field(repr=False)
+    peak_force_fit: float
+    trials: tuple[tuple[str, float, float], ...] = ()
+    speed: float = 0.0
+
+    @property
+    def screened(self) -> bool:
+        return not self.screen.flat_suspected
+
+    @property
+    def fit_rms(self) -> float:
+        cost = self.cost_best if self.flat is not None else self.cost_round
+        return math.sqrt(cost / max(self.n_samples, 1))
+
+
+class _Search:
+    """The record, its windows and the runs made so far."""
+
+    def __init__(
+        self,
+        site: CribSite,
+        wheel: CribWheel,
+        speed: float,
+        t: NDArray[np.float64],
+        channels: NDArray[np.float64],
+        template: NDArray[np.float64],
+        t_star: float,
+    ) -> None:
+        self.site, self.wheel, self.speed, self.t = site, wheel, speed, t
+        self.channels, self.template, self.t_star = channels, template, t_star
+        period = TWO_PI * wheel.radius / speed
+        self.period = period
+        inside = site.in_fit_stretch(t, speed)
+        mask = np.zeros(t.size, dtype=np.bool_)
+        k0 = math.floor((t[0] - t_star) / period) - 1
+        k1 = math.ceil((t[-1] - t_star) / period) + 1
+        windows = 0
+        for k in range(k0, k1 + 1):
+            tk = t_star + k * period
+            w = (t >= tk - WINDOW_BEFORE / speed - 0.002) & (t <= tk + WINDOW_AFTER) & inside
+            if np.any(w):
+                windows += 1
+                mask |= w
+        self.mask = mask
+        self.windows = max(windows, 1)
+        self.lags: dict[FlatKind, float] = {}
+        self.trials: list[Trial] = []
+
+    def cost(self, chans: NDArray[np.float64]) -> float:
+        d = (self.channels - chans)[:, self.mask]
+        return float(np.sum(d * d))
+
+    def excess(self, chans: NDArray[np.float64]) -> NDArray[np.float64]:
+        return np.asarray(np.sum(chans - self.template, axis=0), dtype=np.float64)
+
+    def excess_peak(self, chans: NDArray[np.float64]) -> float:
+        """The largest summed excess over the template near t*."""
+        s = self.excess(chans)
+        near = np.abs(self.t - self.t_star) <= PEAK_SEARCH * self.period
+        return float(np.max(s[near])) if np.any(near) else 0.0
+
+    def delay(self, chans: NDArray[np.float64]) -> float:
+        """s by which the simulated excess lags the measured one over the windows (the
+        cross-correlation's peak, to a fraction of a sample)."""
+        m = self.excess(self.channels)
+        s = self.excess(chans)
+        dt = float(self.t[1] - self.t[0])
+        idx = np.flatnonzero(self.mask)
+        if idx.size < 3:
+            return 0.0
+        lags = range(-MAX_SHIFT, MAX_SHIFT + 1)
+        a = m[idx]
+        scores = []
+        for k in lags:
+            j = np.clip(idx + k, 0, s.size - 1)
+            d = a - s[j]
+            scores.append(float(np.sum(d * d)))
+        i = int(np.argmin(scores))
+        frac = 0.0
+        if 0 < i < len(scores) - 1:
+            y0, y1, y2 = scores[i - 1], scores[i], scores[i + 1]
+            den = y0 - 2.0 * y1 + y2
+            if den > 0.0:
+                frac = 0.5 * (y0 - y2) / den
+        return (lags[i] + frac) * dt
+
+    def run(self, kind: FlatKind, length: float) -> Trial | None:
+        """Simulate the candidate with the phase that puts its excess on the measured one
+        (this kind's lag behind l/2 as last measured); None if the integrator cannot
+        resolve it."""
+        R, V = self.wheel.radius, self.speed
+        offset = self.lags.get(kind, V * self._chain_delay())
+        x_centre = V * self.t_star - 0.5 * length - offset
+        phase = -x_centre / R
+        try:
+            got = self.site.run(self.wheel, V, flat_of(R, kind, length, phase), self.t)
+        except IntegrationError:
+            return None
+        peak = self.excess_peak(got.channels)
+        shift = self.delay(got.channels)
+        self.lags[kind] = offset + V * shift
+        # the run as it would be at the aligned phase: shifted in time (a fraction of a
+        # millisecond, over which the cribs hardly move relative to the impact)
+        aligned = np.empty_like(got.channels)
+        for i in range(aligned.shape[0]):
+            aligned[i] = np.interp(self.t + shift, self.t, got.channels[i])
+        trial = Trial(
+            kind, length, phase + V * shift / R, self.cost(aligned), peak, got.peak_force, got
+        )
+        self.trials.append(trial)
+        return trial
+
+    def _chain_delay(self) -> float:
+        """s: the chain's group delay at low frequency (Butterworth: sum of 1/(ω·sin θ_k))."""
+        s = self.site.sensor
+        if s.cutoff_hz is None:
+            return 0.0
+        w = TWO_PI * s.cutoff_hz
+        n = s.order
+        return sum(1.0 / (w * math.sin(math.pi * (2 * k + 1) / (2 * n))) for k in range(n)) / 2.0
+
+
+def _parabola(points: list[tuple[float, float]]) -> tuple[float, float, float] | None:
+    """(a, l0, J0) of J = a (l - l0)² + J0 through three (l, J) points, or None."""
+    (x1, y1), (x2, y2), (x3, y3) = sorted(points)
+    den = (x1 - x2) * (x1 - x3) * (x2 - x3)
+    if den == 0.0:
+        return None
+    a = (x3 * (y2 - y1) + x2 * (y1 - y3) + x1 * (y3 - y2)) / den
+    b = (x3 * x3 * (y1 - y2) + x2 * x2 * (y3 - y1) + x1 * x1 * (y2 - y3)) / den
+    if a <= 0.0:
+        return None
+    c = y1 - a * x1 * x1 - b * x1
+    l0 = -b / (2.0 * a)
+    return a, l0, c - b * b / (4.0 * a)
+
+
+def fit_channels(
+    site: CribSite,
+    wheel: CribWheel,
+    speed: float,
+    t: NDArray[np.float64],
+    channels: NDArray[np.float64],
+) -> CribEstimate:
+    """Fit a flat to the measured ``channels`` (rows in ``site.cribs``' order) at times ``t``."""
+    template = round_template(site.cribs, speed, wheel.load, t, site.sensor)
+    sc = screen(channels, template, speed, wheel.load)
+    inside = site.in_fit_stretch(t, speed)
+    d0 = (channels - template)[:, inside]
+    n_all = int(d0.size)
+    cost_round_all = float(np.sum(d0 * d0))
+    if not sc.flat_suspected:
+        return CribEstimate(
+            None,
+            None,
+            0.0,
+            0.0,
+            cost_round_all,
+            cost_round_all,
+            n_all,
+            0,
+            sc.noise,
+            sc,
+            0,
+            template,
+            wheel.load,
+            speed=speed,
+        )
+    s = np.sum(channels - template, axis=0)
+    t_star = float(t[int(np.argmax(np.where(inside, s, -np.inf)))])
+    search = _Search(site, wheel, speed, t, channels, template, t_star)
+    cost_round = search.cost(template)
+    n = int(np.count_nonzero(search.mask)) * len(site.cribs)
+    for kind in KINDS:
+        for length in LENGTH_GRID:
+            search.run(kind, length)
+    if not search.trials:
+        return CribEstimate(
+            None,
+            None,
+            0.0,
+            0.0,
+            cost_round,
+            cost_round,
+            n,
+            search.windows,
+            sc.noise,
+            sc,
+            0,
+            template,
+            wheel.load,
+            speed=speed,
+        )
+    best = min(search.trials, key=lambda tr: tr.cost)
+    kind = best.kind
+    # the cost's parabola in log length through the kind's best grid point and its
+    # neighbours, and the interval where it stays within the χ² bound
+    mine = sorted((tr for tr in search.trials if tr.kind == kind), key=lambda tr: tr.length)
+    i = mine.index(best)
+    near = mine[max(0, min(i - 1, len(mine) - 3)) :][:3]
+    bound = 1.0 + 3.84 / (DOF_PER_WINDOW * search.windows)
+    par = _parabola([(math.log(tr.length), tr.cost) for tr in near]) if len(near) == 3 else None
+    length = best.length
+    low = high = best.length
+    if par is not None:
+        a, u0, j0 = par
+        if math.log(near[0].length) <= u0 <= math.log(near[-1].length) and j0 > 0.0:
+            half = math.sqrt(max(min(j0, best.cost) * (bound - 1.0), 0.0) / a)
+            length = math.exp(u0)
+            low, high = math.exp(u0 - half), math.exp(u0 + half)
+        else:
+            par = None
+    if par is None:  # no convex parabola: the interval spans every run within the bound
+        ok = [tr.length for tr in mine if tr.cost <= best.cost * bound]
+        low, high = min(ok), max(ok)
+    low = max(low, LENGTH_RANGE[0] * 0.5)
+    final = search.run(kind, length)  # at the length found, with the phase as last aligned
+    if final is None or final.cost > best.cost:
+        final = best
+    low, high = min(low, final.length), max(high, final.length)
+    return CribEstimate(
+        flat_of(wheel.radius, kind, final.length, final.phase),
+        kind,
+        low,
+        high,
+        cost_round,
+        final.cost,
+        n,
+        search.windows,
+        sc.noise,
+        sc,
+        len(search.trials),
+        final.run.channels,
+        final.peak_force,
+        tuple((tr.kind, tr.length, tr.cost) for tr in search.trials),
+        speed,
+    )
