@@ -4,18 +4,23 @@ From M, C, K (``sim_core.track.assembly``):
 
 1. the undamped modes up to ``cutoff`` Hz, mass-normalised (Φ, ω²);
 2. the non-proportional damping projected on them, Φᵀ C Φ, and the first-order
-   system of (q, q̇) diagonalised: complex modes ζ with ζ̇ = λ·ζ + g(x)·F, where
+   system of (q, q̇) diagonalised: complex modes ζ with ζ̇ = λ·ζ + R(x)·F, where
    the contact force F pushes the rail down at x through the element's shape
-   functions. Conjugate pairs are kept once, with weight 2;
+   functions. Conjugate pairs are kept once, with weight 2. The system is symmetric
+   (M, C, K are), so a mode's left eigenvector is its right one transposed: the load a
+   force puts on a mode is its deflection shape times one constant, and scaling each
+   mode by that constant's square root makes the two the same row R (with the weight
+   folded in, the rail's deflection is Σ Re(R_j(x)·ζ_j));
 3. what the truncation leaves out, kept statically: the residual flexibility of
    the modes above the cutoff (Kᵀ⁻¹ less the modal sum) on every element, and
    the element's own "bubble", the local deflection under a point load between
    its nodes (``beam.bubble_compliance``). Both act in series with the contact.
 
-The rail under the wheel is then w(x) = Σ weight·Re(h_j(x)·ζ_j) − r(x)·F, with
-h and g interpolated from the nodal coefficients by the element's shape
-functions, and a crib's channel is F inside the crib plus the rail's inertia
-between its gauges, Σ weight·Re(a_ij·ζ̇_j) (MODEL.md §8).
+The rail under the wheel is then w(x) = Σ Re(R_j(x)·ζ_j) − r(x)·F, with R
+interpolated from the nodal rows by the element's shape functions, and a crib's
+channel is F inside the crib plus the rail's inertia between its gauges,
+Σ Re(A_ij·ζ̇_j) (MODEL.md §8). Only the elements the wheel rolls over keep their rows
+(the rest of the model, margins and absorbers, acts through the modes).
 
 Worked example (the static point compliance of the reduced model equals the
 finite element one, whatever the cutoff):
@@ -77,8 +82,11 @@ class ModalTrack:
     cutoff: float
     lam: NDArray[np.complex128]
     weight: NDArray[np.float64]
-    out_w: NDArray[np.complex128]
-    inp: NDArray[np.complex128]
+    rows: NDArray[np.complex128]
+    """(rail dofs of the kept elements, modes): R, the deflection per unit ζ and the load per
+    unit downward force at once (the modes scaled so that the two are the same)."""
+    first_element: int
+    """The finite model's index of the first kept element (the wheel's stretch)."""
     elem_x: NDArray[np.float64]
     elem_len: NDArray[np.float64]
     elem_phi: NDArray[np.float64]
@@ -88,6 +96,7 @@ class ModalTrack:
     crib_lo: NDArray[np.float64]
     crib_hi: NDArray[np.float64]
     crib_rows: NDArray[np.complex128]
+    """(cribs, modes): A, the rail's inertia between the gauges per ζ̇ (weights folded in)."""
     fe_compliance_blocks: NDArray[np.float64]
 
     @property
@@ -96,20 +105,17 @@ class ModalTrack:
 
     @functools.cached_property
     def arrays(self) -> Modes:
-        """The compiled stepper's view: real and imaginary parts apart, weights folded in."""
+        """The compiled stepper's view: real and imaginary parts apart."""
 
         def c(a: NDArray[np.float64]) -> NDArray[np.float64]:
             return np.ascontiguousarray(a, dtype=np.float64)
 
-        out = self.out_w * self.weight
-        rows = self.crib_rows * self.weight
+        rows = self.crib_rows
         return Modes(
             c(self.lam.real),
             c(self.lam.imag),
-            c(out.real),
-            c(out.imag),
-            c(self.inp.real),
-            c(self.inp.imag),
+            c(self.rows.real),
+            c(self.rows.imag),
             c(self.elem_x),
             c(self.elem_len),
             c(self.elem_phi),
@@ -122,6 +128,7 @@ class ModalTrack:
         )
 
     def element_of(self, x: float) -> int:
+        """The kept element holding x (the first or last one beyond them)."""
         return int(
             np.clip(np.searchsorted(self.elem_x, x, side="right") - 1, 0, self.elem_x.size - 1)
         )
@@ -132,11 +139,10 @@ class ModalTrack:
         xi = (x - self.elem_x[e]) / self.elem_len[e]
         return e, deflection_shapes(xi, float(self.elem_len[e]), float(self.elem_phi[e]))
 
-    def rows_at(self, x: float) -> tuple[NDArray[np.complex128], NDArray[np.complex128]]:
-        """(h, g) at x: every mode's deflection per unit ζ, and its load per unit downward force."""
+    def rows_at(self, x: float) -> NDArray[np.complex128]:
+        """R at x: every mode's deflection per unit ζ, and its load per unit downward force."""
         e, n = self.shapes_at(x)
-        d = slice(2 * e, 2 * e + 4)
-        return n @ self.out_w[d], n @ self.inp[d]
+        return n @ self.rows[2 * e : 2 * e + 4]
 
     def bubble_compliance(self, x: float) -> float:
         """The element's own local static compliance at x (0 on a node), m/N."""
@@ -151,9 +157,9 @@ class ModalTrack:
 
     def static_compliance(self, x: float) -> float:
         """The reduced model's static point compliance at x, m/N (modes plus residual)."""
-        h, g = self.rows_at(x)
-        # a unit downward force holds ζ = -g/λ; the rail moves by Σ weight·Re(h·ζ) (down)
-        modal = float(np.sum(self.weight * (h * g / self.lam).real))
+        r = self.rows_at(x)
+        # a unit downward force holds ζ = -R/λ; the rail moves by Σ Re(R·ζ) (down)
+        modal = float(np.sum((r * r / self.lam).real))
         return modal + self.residual_compliance(x)
 
     def fe_static_compliance(self, x: float) -> float:
@@ -220,7 +226,7 @@ def _reduce(
     kept = store.load(name, (*_ARRAYS, "x"))
     if kept is not None and kept["x"].shape == lay.x.shape and np.array_equal(kept["x"], lay.x):
         return _from_arrays(track, lay, cutoff, cribs, kept)
-    mt = _modal(assemble(track, lay), cutoff, cribs)
+    mt = _modal(assemble(track, lay), cutoff, cribs, x0, x1)
     store.save(name, {f: getattr(mt, f) for f in _ARRAYS} | {"x": lay.x})
     return mt
 
@@ -228,8 +234,8 @@ def _reduce(
 _ARRAYS = (
     "lam",
     "weight",
-    "out_w",
-    "inp",
+    "rows",
+    "first_element",
     "elem_x",
     "elem_len",
     "elem_phi",
@@ -251,12 +257,15 @@ def _from_arrays(
     a: dict[str, NDArray[Any]],
 ) -> ModalTrack:
     fields: dict[str, Any] = {f: a[f] for f in _ARRAYS}
+    fields["first_element"] = int(fields["first_element"])
     return ModalTrack(
         track=track, layout=lay, cutoff=cutoff, crib_ids=tuple(c.id for c in cribs), **fields
     )
 
 
-def _modal(mats: TrackMatrices, cutoff: float, cribs: tuple[Crib, ...]) -> ModalTrack:
+def _modal(
+    mats: TrackMatrices, cutoff: float, cribs: tuple[Crib, ...], x0: float, x1: float
+) -> ModalTrack:
     lay = mats.layout
     nr = mats.n_rail_dofs
     w2max = (2.0 * np.pi * cutoff) ** 2
@@ -268,7 +277,6 @@ def _modal(mats: TrackMatrices, cutoff: float, cribs: tuple[Crib, ...]) -> Modal
     a[n:, :n] = -np.diag(w2)
     a[n:, n:] = -cr
     lam, v = sla.eig(a)
-    vinv = np.linalg.inv(v)
     keep = lam.imag > 1e-9 * np.abs(lam)
     real = np.abs(lam.imag) <= 1e-9 * np.abs(lam)
     sel = keep | real
@@ -280,48 +288,55 @@ def _modal(mats: TrackMatrices, cutoff: float, cribs: tuple[Crib, ...]) -> Modal
         )
     weight = np.where(keep[sel], 2.0, 1.0)
     lam_k = lam[sel]
-    v_k = v[:, sel]
-    vinv_k = vinv[sel, :]
+    # a mode ψ = (a, λa) of the symmetric pencil B·ẋ + C·x = (Φᵀf, 0), B = [[Cr, I], [I, 0]],
+    # C = diag(Ω², −I): ψᵀBψ = aᵀCr·a + 2λ·aᵀa =: b, and the mode's equation is
+    # ζ̇ = λζ + aᵀΦᵀf/b. A downward force F at x loads it by −h(x)·F/b with h = N(x)·Φ·a
+    # its deflection: scaled by s = √(−weight/b), deflection and load are one row R = s·h.
+    a_k = v[:n, sel]
+    b = np.einsum("ij,ij->j", a_k, cr @ a_k) + 2.0 * lam_k * np.einsum("ij,ij->j", a_k, a_k)
+    scale = np.sqrt(-weight / b)
     phi_r = phi[:nr]
-    out_w = phi_r @ v_k[:n]
-    inp = -(vinv_k[:, n:] @ phi_r.T).T
-    acc = phi_r @ v_k[n:]
+    n_el = lay.n_nodes - 1
+    first = max(int(np.searchsorted(lay.x, x0 - 1e-9, side="right")) - 2, 0)
+    last = min(int(np.searchsorted(lay.x, x1 + 1e-9, side="left")) + 1, n_el)
+    rows = (phi_r[2 * first : 2 * last + 2] @ a_k) * scale
+    acc = (phi_r @ a_k) * (lam_k * scale)
     # static: FE compliance blocks and the truncation's residual, per element
     kinv = np.linalg.inv(mats.k)
-    n_el = lay.n_nodes - 1
-    blocks = np.empty((n_el, 4, 4))
-    resid = np.empty((n_el, 4, 4))
-    modal_flex = (phi_r / w2) @ phi_r.T
-    for e in range(n_el):
+    kept = range(first, last)
+    blocks = np.empty((len(kept), 4, 4))
+    resid = np.empty((len(kept), 4, 4))
+    for k, e in enumerate(kept):
         d = slice(2 * e, 2 * e + 4)
-        blocks[e] = kinv[d, d]
-        resid[e] = kinv[d, d] - modal_flex[d, d]
-    lengths = lay.lengths
+        blocks[k] = kinv[d, d]
+        resid[k] = kinv[d, d] - (phi_r[d] / w2) @ phi_r[d].T
+    lengths = lay.lengths[first:last]
     phis = np.array([shear_ratio(mats.track.rail, float(L)) for L in lengths])
     grid = np.linspace(0.0, 1.0, BUBBLE_POINTS)
     bub_cache: dict[float, NDArray[np.float64]] = {}
-    bubble = np.empty((n_el, BUBBLE_POINTS))
+    bubble = np.empty((len(kept), BUBBLE_POINTS))
     for e, L in enumerate(lengths):
         key = round(float(L), 12)
         if key not in bub_cache:
             bub_cache[key] = bubble_compliance(mats.track.rail, key, grid)
         bubble[e] = bub_cache[key]
-    rows = np.zeros((len(cribs), lam_k.size), dtype=np.complex128)
+    crib_rows = np.zeros((len(cribs), lam_k.size), dtype=np.complex128)
+    all_lengths = lay.lengths
     for i, c in enumerate(cribs):
         ai = np.zeros(nr)
         for e in range(n_el):
             if lay.x[e] >= c.x_a - 1e-9 and lay.x[e + 1] <= c.x_b + 1e-9:
-                ai[2 * e : 2 * e + 4] += deflection_integral(mats.track.rail, float(lengths[e]))
-        rows[i] = ai @ acc
+                ai[2 * e : 2 * e + 4] += deflection_integral(mats.track.rail, float(all_lengths[e]))
+        crib_rows[i] = ai @ acc
     return ModalTrack(
         track=mats.track,
         layout=lay,
         cutoff=cutoff,
         lam=np.ascontiguousarray(lam_k),
         weight=weight,
-        out_w=np.ascontiguousarray(out_w),
-        inp=np.ascontiguousarray(inp),
-        elem_x=np.ascontiguousarray(lay.x[:-1]),
+        rows=np.ascontiguousarray(rows),
+        first_element=first,
+        elem_x=np.ascontiguousarray(lay.x[first:last]),
         elem_len=np.ascontiguousarray(lengths),
         elem_phi=phis,
         resid=resid,
@@ -329,6 +344,6 @@ def _modal(mats: TrackMatrices, cutoff: float, cribs: tuple[Crib, ...]) -> Modal
         crib_ids=tuple(c.id for c in cribs),
         crib_lo=np.array([c.x_a for c in cribs], dtype=np.float64),
         crib_hi=np.array([c.x_b for c in cribs], dtype=np.float64),
-        crib_rows=rows,
+        crib_rows=crib_rows,
         fe_compliance_blocks=blocks,
     )

@@ -113,9 +113,9 @@ def simulate_on_track(
 
     # static equilibrium of wheel and track at x0
     f0 = spec.load
-    h, g = mt.rows_at(x0)
-    zeta = np.ascontiguousarray(-g * f0 / mt.lam)
-    w0 = float(np.sum(mt.weight * (h * zeta).real)) - mt.residual_compliance(x0) * f0
+    r0 = mt.rows_at(x0)
+    zeta = np.ascontiguousarray(-r0 * f0 / mt.lam)
+    w0 = float(np.sum((r0 * zeta).real)) - mt.residual_compliance(x0) * f0
     d0 = static_indentation(spec.contact, spec.load)
     ck0 = float(table.evaluate(np.array([x0]))[0])
     y0 = ck0 + w0 - d0 + init.y_c

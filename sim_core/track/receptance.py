@@ -30,8 +30,9 @@ from sim_core.track.modal import ModalTrack
 
 def _load_vector(mt: ModalTrack, x: float, n_dofs: int) -> NDArray[np.float64]:
     e, n = mt.shapes_at(x)
+    d = 2 * (e + mt.first_element)
     b = np.zeros(n_dofs)
-    b[2 * e : 2 * e + 4] = n
+    b[d : d + 4] = n
     return b
 
 
@@ -52,11 +53,12 @@ def modal_receptance(
     mt: ModalTrack, x: float, freqs: NDArray[np.float64]
 ) -> NDArray[np.complex128]:
     """α(f) of the reduced model at x (modes plus the static residual), m/N."""
-    h, g = mt.rows_at(x)
+    r = mt.rows_at(x)
     s = 2j * np.pi * np.asarray(freqs)[:, None]
-    # ζ = g·F/(s − λ) for a unit downward force; its downward deflection is −Σ weight·Re-part
-    # taken as the analytic continuation: the pair (λ, λ̄) gives h g/(s−λ) + conj(h g)/(s−λ̄)
-    hg = h * g
+    # ζ = R·F/(s − λ) for a unit downward force; its downward deflection is −Σ Re(R·ζ)
+    # taken as the analytic continuation: a pair (λ, λ̄), whose R² holds the weight 2, gives
+    # (R²/2)/(s−λ) + conj(R²/2)/(s−λ̄)
+    hg = r * r / mt.weight
     pair = mt.weight > 1.0
     terms = np.where(
         pair, hg / (s - mt.lam) + np.conj(hg) / (s - np.conj(mt.lam)), hg / (s - mt.lam)

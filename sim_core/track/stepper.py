@@ -3,7 +3,7 @@
 Between two step ends t and t + τ the contact force F is taken linear in time.
 Then every step is exact but for that one assumption (second order in τ):
 
-- each track mode: ζ(t + τ) = e^{λτ}·ζ + τ·(φ₁ − φ₂)(λτ)·u_a + τ·φ₂(λτ)·u_b, with u = g(x)·F
+- each track mode: ζ(t + τ) = e^{λτ}·ζ + τ·(φ₁ − φ₂)(λτ)·u_a + τ·φ₂(λτ)·u_b, with u = R(x)·F
   the mode's load, φ₁(z) = (eᶻ − 1)/z and φ₂(z) = (eᶻ − 1 − z)/z²;
 - the wheel: y(t + τ) = y + τ·v − P·τ²/2m + τ²·(F_a/3 + F_b/6)/m (exact for F linear in t);
 - the contact: δ_b = δ* − κ·F_b is linear in the unknown end force F_b, so
@@ -20,8 +20,12 @@ constraint. The plastic range's entry and exit are reported where δ crosses
 function, so the step needs no restart there).
 
 Complex numbers are kept as separate real and imaginary arrays, and the
-weights (2 for a conjugate pair) are folded into the output rows, so that the
-loops over the modes are plain float arithmetic the compiler vectorises.
+weights (2 for a conjugate pair) are folded into the rows, so that the loops over
+the modes are plain float arithmetic the compiler vectorises. The modes are
+scaled so that one row R(x) is both a mode's deflection and its load
+(``sim_core.track.modal``), and a step is one pass over the modes: the end force's
+part of a step, τφ₂·R_b·F_b, is not added when the step is taken but when the
+next one reads the state (ζ = p + b·R·F, kept as p, R, b and F).
 
 Worked example: ``sim_core.track.passage.simulate_on_track`` is the only caller.
 """
@@ -59,12 +63,10 @@ class Modes(NamedTuple):
 
     lam_r: NDArray[np.float64]
     lam_i: NDArray[np.float64]
-    out_r: NDArray[np.float64]
-    """(rail dofs, modes): displacement rows, weights folded in."""
-    out_i: NDArray[np.float64]
-    inp_r: NDArray[np.float64]
-    """(rail dofs, modes): the load per unit downward force at a dof."""
-    inp_i: NDArray[np.float64]
+    row_r: NDArray[np.float64]
+    """(rail dofs of the kept elements, modes): R, each mode's deflection and load per unit
+    downward force at a dof (weights folded in)."""
+    row_i: NDArray[np.float64]
     ex: NDArray[np.float64]
     el: NDArray[np.float64]
     ephi: NDArray[np.float64]
@@ -91,22 +93,24 @@ class Wheel(NamedTuple):
     speed: float
 
 
-class Scratch(NamedTuple):
-    """The stepper's per-passage arrays, one entry a mode (the shape functions: four).
+class State(NamedTuple):
+    """The modes at the last step's end, t, and a trial step's end (one entry a mode).
 
-    ζ (zr, zi) and the loads u = g·F at the last step's end (ur, ui); a trial step's
-    predicted ζ (pr, pi), its g at the end (gr, gi) and τφ₂·g (qr, qi)."""
+    ζ(t) = p + b·R·F: the last step's prediction p (zr, zi) without its end force, R at
+    x(t) (hr, hi), that step's τφ₂ (br, bi) and the force F at t. A trial writes its own
+    prediction (pr, pi) and R at its end (gr, gi); taking the step swaps them in. ``nsh``:
+    the four shape functions."""
 
     zr: NDArray[np.float64]
     zi: NDArray[np.float64]
-    ur: NDArray[np.float64]
-    ui: NDArray[np.float64]
+    hr: NDArray[np.float64]
+    hi: NDArray[np.float64]
+    br: NDArray[np.float64]
+    bi: NDArray[np.float64]
     pr: NDArray[np.float64]
     pi: NDArray[np.float64]
     gr: NDArray[np.float64]
     gi: NDArray[np.float64]
-    qr: NDArray[np.float64]
-    qi: NDArray[np.float64]
     nsh: NDArray[np.float64]
 
 
@@ -176,34 +180,17 @@ def residual(e: int, xi: float, n: NDArray[np.float64], md: Modes) -> float:
 
 
 @_fast
-def load_rows(
+def rows_into(
     e: int, n: NDArray[np.float64], md: Modes, gr: NDArray[np.float64], gi: NDArray[np.float64]
 ) -> None:
-    """g(x) of every mode: the element's input rows through the shape functions."""
+    """R(x) of every mode: the element's rows through the shape functions."""
     d = 2 * e
-    r0, r1, r2, r3 = md.inp_r[d], md.inp_r[d + 1], md.inp_r[d + 2], md.inp_r[d + 3]
-    i0, i1, i2, i3 = md.inp_i[d], md.inp_i[d + 1], md.inp_i[d + 2], md.inp_i[d + 3]
+    r0, r1, r2, r3 = md.row_r[d], md.row_r[d + 1], md.row_r[d + 2], md.row_r[d + 3]
+    i0, i1, i2, i3 = md.row_i[d], md.row_i[d + 1], md.row_i[d + 2], md.row_i[d + 3]
     n0, n1, n2, n3 = n[0], n[1], n[2], n[3]
     for j in range(gr.size):
         gr[j] = n0 * r0[j] + n1 * r1[j] + n2 * r2[j] + n3 * r3[j]
         gi[j] = n0 * i0[j] + n1 * i1[j] + n2 * i2[j] + n3 * i3[j]
-
-
-@_fast
-def deflection(
-    e: int, n: NDArray[np.float64], md: Modes, zr: NDArray[np.float64], zi: NDArray[np.float64]
-) -> float:
-    """Σ weight·Re(h_j(x)·ζ_j): the modes' rail deflection at x."""
-    d = 2 * e
-    r0, r1, r2, r3 = md.out_r[d], md.out_r[d + 1], md.out_r[d + 2], md.out_r[d + 3]
-    i0, i1, i2, i3 = md.out_i[d], md.out_i[d + 1], md.out_i[d + 2], md.out_i[d + 3]
-    n0, n1, n2, n3 = n[0], n[1], n[2], n[3]
-    w = 0.0
-    for j in range(zr.size):
-        hr = n0 * r0[j] + n1 * r1[j] + n2 * r2[j] + n3 * r3[j]
-        hi = n0 * i0[j] + n1 * i1[j] + n2 * i2[j] + n3 * i3[j]
-        w += hr * zr[j] - hi * zi[j]
-    return w
 
 
 @_fast
@@ -212,68 +199,72 @@ def predict(
     n: NDArray[np.float64],
     md: Modes,
     co: NDArray[np.float64],
-    zr: NDArray[np.float64],
-    zi: NDArray[np.float64],
-    ur: NDArray[np.float64],
-    ui: NDArray[np.float64],
-    pr: NDArray[np.float64],
-    pi: NDArray[np.float64],
-    gr: NDArray[np.float64],
-    gi: NDArray[np.float64],
-    qr: NDArray[np.float64],
-    qi: NDArray[np.float64],
+    sc: State,
+    fa: float,
 ) -> tuple[float, float]:
-    """The modes at the step's end without its end force, into (pr, pi); g at the end into
-    (gr, gi) and τφ₂·g into (qr, qi); returns (their deflection at x, its compliance B)."""
+    """The modes at the step's end without its end force, into (pr, pi), and R at the end
+    into (gr, gi); returns (their deflection there, its compliance Σ Re(τφ₂·R²))."""
     d = 2 * e
-    r0, r1, r2, r3 = md.out_r[d], md.out_r[d + 1], md.out_r[d + 2], md.out_r[d + 3]
-    i0, i1, i2, i3 = md.out_i[d], md.out_i[d + 1], md.out_i[d + 2], md.out_i[d + 3]
-    s0, s1, s2, s3 = md.inp_r[d], md.inp_r[d + 1], md.inp_r[d + 2], md.inp_r[d + 3]
-    t0, t1, t2, t3 = md.inp_i[d], md.inp_i[d + 1], md.inp_i[d + 2], md.inp_i[d + 3]
+    r0, r1, r2, r3 = md.row_r[d], md.row_r[d + 1], md.row_r[d + 2], md.row_r[d + 3]
+    i0, i1, i2, i3 = md.row_i[d], md.row_i[d + 1], md.row_i[d + 2], md.row_i[d + 3]
     n0, n1, n2, n3 = n[0], n[1], n[2], n[3]
     er, ei, ar, ai, br, bi = co[0], co[1], co[2], co[3], co[4], co[5]
+    zr, zi, hr, hi, lr, li = sc.zr, sc.zi, sc.hr, sc.hi, sc.br, sc.bi
+    pr, pi, gr, gi = sc.pr, sc.pi, sc.gr, sc.gi
     w = 0.0
     b = 0.0
     for j in range(zr.size):
-        p_r = er[j] * zr[j] - ei[j] * zi[j] + ar[j] * ur[j] - ai[j] * ui[j]
-        p_i = er[j] * zi[j] + ei[j] * zr[j] + ar[j] * ui[j] + ai[j] * ur[j]
+        u_r = hr[j] * fa
+        u_i = hi[j] * fa
+        z_r = zr[j] + lr[j] * u_r - li[j] * u_i
+        z_i = zi[j] + lr[j] * u_i + li[j] * u_r
+        p_r = er[j] * z_r - ei[j] * z_i + ar[j] * u_r - ai[j] * u_i
+        p_i = er[j] * z_i + ei[j] * z_r + ar[j] * u_i + ai[j] * u_r
         pr[j] = p_r
         pi[j] = p_i
-        hr = n0 * r0[j] + n1 * r1[j] + n2 * r2[j] + n3 * r3[j]
-        hi = n0 * i0[j] + n1 * i1[j] + n2 * i2[j] + n3 * i3[j]
-        g_r = n0 * s0[j] + n1 * s1[j] + n2 * s2[j] + n3 * s3[j]
-        g_i = n0 * t0[j] + n1 * t1[j] + n2 * t2[j] + n3 * t3[j]
-        gr[j] = g_r
-        gi[j] = g_i
-        q_r = br[j] * g_r - bi[j] * g_i
-        q_i = br[j] * g_i + bi[j] * g_r
-        qr[j] = q_r
-        qi[j] = q_i
-        w += hr * p_r - hi * p_i
-        b += hr * q_r - hi * q_i
+        h_r = n0 * r0[j] + n1 * r1[j] + n2 * r2[j] + n3 * r3[j]
+        h_i = n0 * i0[j] + n1 * i1[j] + n2 * i2[j] + n3 * i3[j]
+        gr[j] = h_r
+        gi[j] = h_i
+        w += h_r * p_r - h_i * p_i
+        b += br[j] * (h_r * h_r - h_i * h_i) - 2.0 * bi[j] * (h_r * h_i)
     return w, b
 
 
 @_fast
-def commit(
-    f: float,
-    zr: NDArray[np.float64],
-    zi: NDArray[np.float64],
-    ur: NDArray[np.float64],
-    ui: NDArray[np.float64],
-    pr: NDArray[np.float64],
-    pi: NDArray[np.float64],
-    gr: NDArray[np.float64],
-    gi: NDArray[np.float64],
-    qr: NDArray[np.float64],
-    qi: NDArray[np.float64],
-) -> None:
-    """ζ = predicted + τφ₂·g·F; the mode loads u = g·F for the next step."""
+def _rail_at(md: Modes, sc: State, fa: float) -> tuple[float, float]:
+    """The rail's deflection and velocity at the last step's end, Σ Re(R·ζ) and Σ Re(R·ζ̇),
+    with ζ = p + b·R·F; ζ̇ = λζ + R·F into the state's (pr, pi)."""
+    zr, zi, hr, hi, lr, li = sc.zr, sc.zi, sc.hr, sc.hi, sc.br, sc.bi
+    dr, di = sc.pr, sc.pi
+    wv = 0.0
+    vw = 0.0
     for j in range(zr.size):
-        zr[j] = pr[j] + qr[j] * f
-        zi[j] = pi[j] + qi[j] * f
-        ur[j] = gr[j] * f
-        ui[j] = gi[j] * f
+        u_r = hr[j] * fa
+        u_i = hi[j] * fa
+        z_r = zr[j] + lr[j] * u_r - li[j] * u_i
+        z_i = zi[j] + lr[j] * u_i + li[j] * u_r
+        d_r = md.lam_r[j] * z_r - md.lam_i[j] * z_i + u_r
+        d_i = md.lam_r[j] * z_i + md.lam_i[j] * z_r + u_i
+        dr[j] = d_r
+        di[j] = d_i
+        wv += hr[j] * z_r - hi[j] * z_i
+        vw += hr[j] * d_r - hi[j] * d_i
+    return wv, vw
+
+
+@_fast
+def _dot_re(
+    ar: NDArray[np.float64],
+    ai: NDArray[np.float64],
+    br: NDArray[np.float64],
+    bi: NDArray[np.float64],
+) -> float:
+    """Σ Re(a·b)."""
+    s = 0.0
+    for j in range(ar.size):
+        s += ar[j] * br[j] - ai[j] * bi[j]
+    return s
 
 
 @numba.njit(cache=True)
@@ -315,7 +306,7 @@ def trial(
     tab: Table,
     wh: Wheel,
     co: NDArray[np.float64],
-    sc: Scratch,
+    sc: State,
     t: float,
     st: float,
     y: float,
@@ -324,16 +315,14 @@ def trial(
     he: int,
     ht: int,
 ) -> tuple[float, float, float, int, int]:
-    """A step of length ``st`` (coefficients ``co``) up to its end force: fills the scratch's
-    (pr, pi), (gr, gi), (qr, qi); returns (δ*, κ, the wheel's height without the end force,
-    element, table hints)."""
+    """A step of length ``st`` (coefficients ``co``) up to its end force: fills the state's
+    (pr, pi), (gr, gi); returns (δ*, κ, the wheel's height without the end force, element,
+    table hints)."""
     nsh = sc.nsh
     xb = wh.speed * (t + st)
     he = element_at(xb, md.ex, he)
     xi = shapes(xb, he, md, nsh)
-    w0, bc = predict(
-        he, nsh, md, co, sc.zr, sc.zi, sc.ur, sc.ui, sc.pr, sc.pi, sc.gr, sc.gi, sc.qr, sc.qi
-    )
+    w0, bc = predict(he, nsh, md, co, sc, fa)
     ypred = _wheel_at(y, v, fa, st, wh)
     ckb, _, ht = table_eval(tab.x, tab.y, tab.slope_left, tab.slope_right, tab.period, xb, ht)
     kappa = st * st / (6.0 * wh.mass) - bc + residual(he, xi, nsh, md)
@@ -384,16 +373,20 @@ def run(
     nc = md.crib_lo.size
     co_n = np.empty((6, m))
     co_t = np.empty((6, m))
-    ur = np.empty(m)
-    ui = np.empty(m)
-    pr = np.empty(m)
-    pi = np.empty(m)
-    gr = np.empty(m)
-    gi = np.empty(m)
-    qr = np.empty(m)
-    qi = np.empty(m)
-    nsh = np.empty(4)
-    sc = Scratch(zr, zi, ur, ui, pr, pi, gr, gi, qr, qi, nsh)
+    sc = State(
+        zr,
+        zi,
+        np.empty(m),
+        np.empty(m),
+        np.zeros(m),  # ζ(t0) = p: no end force pending
+        np.zeros(m),
+        np.empty(m),
+        np.empty(m),
+        np.empty(m),
+        np.empty(m),
+        np.empty(4),
+    )
+    nsh = sc.nsh
     tau_n = -1.0
     he = 0
     ht = 0
@@ -407,13 +400,13 @@ def run(
     x = wh.speed * t0
     he = element_at(x, md.ex, he)
     xi = shapes(x, he, md, nsh)
-    load_rows(he, nsh, md, gr, gi)
-    for j in range(m):
-        ur[j] = gr[j] * fa
-        ui[j] = gi[j] * fa
+    rows_into(he, nsh, md, sc.hr, sc.hi)
     contact = fa > 0.0
     ck, _, ht = table_eval(tab.x, tab.y, tab.slope_left, tab.slope_right, tab.period, x, ht)
-    delta_a = -y + ck + deflection(he, nsh, md, zr, zi) - residual(he, xi, nsh, md) * fa
+    w_a = 0.0
+    for j in range(m):
+        w_a += sc.hr[j] * zr[j] - sc.hi[j] * zi[j]
+    delta_a = -y + ck + w_a - residual(he, xi, nsh, md) * fa
     plastic = plastic_law and contact and delta_a > wh.d_y
     n_tr = 0
     n_dent = 0
@@ -509,7 +502,14 @@ def run(
                     fb, delta_b = _end_delta(dstar, kappa, contact and with_force, wh)
                     if not with_force:
                         delta_b = 0.0
-                commit(fb, zr, zi, ur, ui, pr, pi, gr, gi, qr, qi)
+                    co = co_t
+                # take the step: its prediction and end rows become the state, its τφ₂ the pending
+                sc = State(
+                    sc.pr, sc.pi, sc.gr, sc.gi, sc.br, sc.bi, sc.zr, sc.zi, sc.hr, sc.hi, nsh
+                )
+                for j in range(m):
+                    sc.br[j] = co[4, j]
+                    sc.bi[j] = co[5, j]
                 y = ypred + st * st * fb / (6.0 * wh.mass)
                 v = v - wh.load * st / wh.mass + st * (fa + fb) / (2.0 * wh.mass)
                 if not contact:
@@ -561,13 +561,10 @@ def run(
             xs = wh.speed * t
             he = element_at(xs, md.ex, he)
             xi = shapes(xs, he, md, nsh)
-            load_rows(he, nsh, md, gr, gi)
-            wv = deflection(he, nsh, md, zr, zi)
-            # the rail's velocity under the wheel: Σ weight·Re(h·(λζ + g·F))
-            for j in range(m):
-                pr[j] = md.lam_r[j] * zr[j] - md.lam_i[j] * zi[j] + gr[j] * fa
-                pi[j] = md.lam_r[j] * zi[j] + md.lam_i[j] * zr[j] + gi[j] * fa
-            vw = deflection(he, nsh, md, pr, pi)
+            # the state at t (R there is the last step's end row): ζ = p + b·R·F, and the rail's
+            # deflection and velocity under the wheel, Σ Re(R·ζ) and Σ Re(R·(λζ + R·F))
+            wv, vw = _rail_at(md, sc, fa)
+            dr, di = sc.pr, sc.pi
             rr = residual(he, xi, nsh, md)
             ck, _, ht = table_eval(
                 tab.x, tab.y, tab.slope_left, tab.slope_right, tab.period, xs, ht
@@ -584,11 +581,7 @@ def run(
             row[C_CONTACT] = 1.0 if contact else 0.0
             row[C_VW] = vw
             for i in range(nc):
-                cr = md.crib_r[i]
-                ci = md.crib_i[i]
-                s = 0.0
-                for j in range(m):
-                    s += cr[j] * pr[j] - ci[j] * pi[j]
+                s = _dot_re(md.crib_r[i], md.crib_i[i], dr, di)
                 # the wheel's load between the gauges; half of it on a gauge (the step's midpoint:
                 # a sample that falls exactly on a gauge crossing is a tie either way)
                 tie = 1e-9 * (1.0 + abs(xs))
