@@ -244,6 +244,51 @@ def _seg_value(
 
 
 @numba.njit(cache=True)
+def _lines(
+    R: float, vx: NDArray[np.float64], vy: NDArray[np.float64], jlo: int, jhi: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Per segment j in [jlo, jhi] (rising in x): its slope s, its line's lift R·s²/(c + 1) and
+    its tangent point's offset s·R/c (c = √(1 + s²)), the same expressions as
+    :func:`_piece`'s, computed once (NaN-free zeros elsewhere)."""
+    n = vx.size
+    ss = np.zeros(n)
+    so = np.zeros(n)
+    sto = np.zeros(n)
+    for k in range(jlo, jhi + 1):
+        dxs = vx[k + 1] - vx[k]
+        if dxs > 0.0:
+            sl = (vy[k + 1] - vy[k]) / dxs
+            c = math.sqrt(1.0 + sl * sl)
+            ss[k] = sl
+            so[k] = R * sl * sl / (c + 1.0)
+            sto[k] = sl * R / c
+    return ss, so, sto
+
+
+@numba.njit(cache=True, inline="always")
+def _seg_value_l(
+    j: int,
+    x: float,
+    R: float,
+    vx: NDArray[np.float64],
+    vy: NDArray[np.float64],
+    ss: NDArray[np.float64],
+    so: NDArray[np.float64],
+    sto: NDArray[np.float64],
+) -> tuple[float, float, float, int]:
+    """:func:`_seg_value` of a segment rising in x from :func:`_lines`' columns: the same
+    numbers to the last bit, without the line's square root and divisions."""
+    p = x + sto[j]
+    if p < vx[j]:
+        v, s, xd = _piece(2 * j, x, R, vx, vy)
+        return v, s, xd, 2 * j
+    if p > vx[j + 1]:
+        v, s, xd = _piece(2 * j + 2, x, R, vx, vy)
+        return v, s, xd, 2 * j + 2
+    return so[j] + vy[j] + ss[j] * (x - vx[j]), ss[j], p, 2 * j + 1
+
+
+@numba.njit(cache=True)
 def _seg_breaks(
     j: int, R: float, vx: NDArray[np.float64], vy: NDArray[np.float64]
 ) -> tuple[float, float]:
@@ -362,6 +407,7 @@ def _envelope_nodes(
     jlo = max(int(np.searchsorted(vx, x0 - R, side="right")) - 1, 0)
     jhi = min(int(np.searchsorted(vx, x1 + R, side="left")), n - 2)
     cap = jhi - jlo + 2
+    ss, so, sto = _lines(R, vx, vy, jlo, jhi)
     st = np.empty(cap, np.int64)  # segments on the stack
     sx = np.empty(cap)  # where each starts to win
     sk = np.empty(cap)  # 1.0 if its start is a kink
@@ -374,32 +420,28 @@ def _envelope_nodes(
         while ns > 0:
             t = st[ns - 1]
             xs = sx[ns - 1]
-            vj = _seg_value(j, xs, R, vx, vy)[0]
-            vt = _seg_value(t, xs, R, vx, vy)[0]
+            vj = _seg_value_l(j, xs, R, vx, vy, ss, so, sto)[0]
+            vt = _seg_value_l(t, xs, R, vx, vy, ss, so, sto)[0]
             if vj >= vt:
                 ns -= 1  # j at or above t wherever t won
                 continue
             if t == j - 1 and vx[j + 1] > vx[j] and vx[j] > vx[j - 1]:
                 # adjacent: the vertex j between them, in closed form
-                s0 = (vy[j] - vy[j - 1]) / (vx[j] - vx[j - 1])
-                s1 = (vy[j + 1] - vy[j]) / (vx[j + 1] - vx[j])
-                c0 = math.sqrt(1.0 + s0 * s0)
+                s0 = ss[j - 1]
+                s1 = ss[j]
                 if s1 <= s0 + 1e-12:
                     # convex (or collinear to round-off): line j-1, then vertex j's arc
                     # (j's from there, C¹)
-                    start = vx[j] - s0 * R / c0
+                    start = vx[j] - sto[j - 1]
                     kink = 0.0
                 else:  # concave: the two offset lines cross between their tangent ends
-                    c1 = math.sqrt(1.0 + s1 * s1)
-                    e0 = R * s0 * s0 / (c0 + 1.0)
-                    e1 = R * s1 * s1 / (c1 + 1.0)
-                    start = vx[j] + (e1 - e0) / (s0 - s1)
+                    start = vx[j] + (so[j] - so[j - 1]) / (s0 - s1)
                     kink = 1.0
                     # valid where both are their lines (not where a segment too short for
                     # its tangent point hands over by its end vertex's arc)
                     if not (
-                        vx[j] - s0 * R / c0 - (vx[j] - vx[j - 1]) <= start <= vx[j] - s0 * R / c0
-                        and vx[j] - s1 * R / c1 <= start <= vx[j + 1] - s1 * R / c1
+                        vx[j] - sto[j - 1] - (vx[j] - vx[j - 1]) <= start <= vx[j] - sto[j - 1]
+                        and vx[j] - sto[j] <= start <= vx[j + 1] - sto[j]
                     ):
                         start = xs  # not found: the general case below
                 if not start > xs:
@@ -426,14 +468,14 @@ def _envelope_nodes(
         b = sx[m + 1] if m + 1 < ns else x1
         if m > 0:
             # the start of j: the left side from the segment before
-            vl, sl, _, _ = _seg_value(st[m - 1], a, R, vx, vy)
-            vr, sr, xd, _ = _seg_value(j, a, R, vx, vy)
+            vl, sl, _, _ = _seg_value_l(st[m - 1], a, R, vx, vy, ss, so, sto)
+            vr, sr, xd, _ = _seg_value_l(j, a, R, vx, vy, ss, so, sto)
             if nn > 0 and a - nodes[nn - 1, X] <= 1e-13 * max(1.0, abs(a)):
                 nn -= 1
                 sl = nodes[nn, SL]
             _row(nodes, nn, a, max(vl, vr), sl, sr, xd, sk[m])
             nn += 1
-        e0, e1 = _seg_breaks(j, R, vx, vy)
+        e0, e1 = vx[j] - sto[j], vx[j + 1] - sto[j]  # _seg_breaks
         for e in (e0, e1):
             # grid points before the break
             while i <= nint:
@@ -443,12 +485,12 @@ def _envelope_nodes(
                 if (xg > a or (m == 0 and xg >= a)) and (
                     nn == 0 or xg - nodes[nn - 1, X] > 1e-13 * max(1.0, abs(xg))
                 ):
-                    v, s, xd, _ = _seg_value(j, xg, R, vx, vy)
+                    v, s, xd, _ = _seg_value_l(j, xg, R, vx, vy, ss, so, sto)
                     _row(nodes, nn, xg, v, s, s, xd, 0.0)
                     nn += 1
                 i += 1
             if a < e < b and e - nodes[nn - 1, X] > 1e-13 * max(1.0, abs(e)):
-                v, s, xd, _ = _seg_value(j, e, R, vx, vy)
+                v, s, xd, _ = _seg_value_l(j, e, R, vx, vy, ss, so, sto)
                 _row(nodes, nn, e, v, s, s, xd, 0.0)
                 nn += 1
         while i <= nint:
@@ -458,7 +500,7 @@ def _envelope_nodes(
             if (xg > a or (m == 0 and xg >= a)) and (
                 nn == 0 or xg - nodes[nn - 1, X] > 1e-13 * max(1.0, abs(xg))
             ):
-                v, s, xd, _ = _seg_value(j, xg, R, vx, vy)
+                v, s, xd, _ = _seg_value_l(j, xg, R, vx, vy, ss, so, sto)
                 _row(nodes, nn, xg, v, s, s, xd, 0.0)
                 nn += 1
             i += 1
