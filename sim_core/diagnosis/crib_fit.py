@@ -47,17 +47,25 @@ __all__ = ["DOF_PER_WINDOW", "LENGTH_GRID", "CribEstimate", "fit_channels", "fla
 
 KINDS: tuple[FlatKind, ...] = ("flat", "rounded_flat")
 
-LENGTH_GRID = (0.015, 0.025, 0.04, 0.06, 0.09, 0.13)
-"""m: the lengths tried for each kind (about 1.6 apart: the cost's parabola in log length
-through three of them refines the best)."""
+LENGTH_GRID = (0.015, 0.025, 0.04, 0.065, 0.105)
+"""m: the lengths tried for each kind (about 1.6 apart), before the refinement."""
 
-LENGTH_RANGE = (0.008, 0.16)
+GRID_STEP = math.log(1.6)
+"""The grid's step in log length (the refinement's step outwards from an end)."""
+
+MIN_STEP = 0.01
+"""Smallest step in log length the refinement takes (1 %: below what the data resolve)."""
+
+REFINE_RUNS = 4
+"""Runs refining the best kind's length (one fewer for the other kind, if refined)."""
+
+KIND_REFINE_RATIO = 2.0
+"""The other kind is refined too when its best grid cost is within this factor of the best."""
+
+LENGTH_RANGE = (0.006, 0.2)
 """m: the lengths the search may try."""
 
-PROFILE_STEP = 0.12
-"""Relative length step either side of the best for the cost's parabola."""
-
-DOF_PER_WINDOW = 2.0
+DOF_PER_WINDOW = 1.0
 """Degrees of freedom of the model error per compared window (χ² bound of the interval)."""
 
 WINDOW_BEFORE = 0.15
@@ -158,7 +166,7 @@ class _Search:
                 mask |= w
         self.mask = mask
         self.windows = max(windows, 1)
-        self.lags: dict[FlatKind, float] = {}
+        self.lags: dict[FlatKind, list[tuple[float, float]]] = {}
         self.trials: list[Trial] = []
 
     def cost(self, chans: NDArray[np.float64]) -> float:
@@ -199,12 +207,24 @@ class _Search:
                 frac = 0.5 * (y0 - y2) / den
         return (lags[i] + frac) * dt
 
+    def offset(self, kind: FlatKind, length: float) -> float:
+        """m by which the impact trails the flat's centre beyond l/2 for this kind and
+        length: linear in the length through the two aligned runs nearest to it (the chain's
+        delay before any)."""
+        known = sorted(self.lags.get(kind, []), key=lambda p: abs(p[0] - length))
+        if not known:
+            return self.speed * self._chain_delay()
+        if len(known) == 1 or abs(known[0][0] - known[1][0]) < 1e-6:
+            return known[0][1]
+        (l1, o1), (l2, o2) = known[0], known[1]
+        return o1 + (o2 - o1) * (length - l1) / (l2 - l1)
+
     def run(self, kind: FlatKind, length: float) -> Trial | None:
         """Simulate the candidate with the phase that puts its excess on the measured one
-        (this kind's lag behind l/2 as last measured); None if the integrator cannot
+        (``offset``); None if the integrator cannot
         resolve it."""
         R, V = self.wheel.radius, self.speed
-        offset = self.lags.get(kind, V * self._chain_delay())
+        offset = self.offset(kind, length)
         x_centre = V * self.t_star - 0.5 * length - offset
         phase = -x_centre / R
         try:
@@ -213,7 +233,7 @@ class _Search:
             return None
         peak = self.excess_peak(got.channels)
         shift = self.delay(got.channels)
-        self.lags[kind] = offset + V * shift
+        self.lags.setdefault(kind, []).append((length, offset + V * shift))
         # the run as it would be at the aligned phase: shifted in time (a fraction of a
         # millisecond, over which the cribs hardly move relative to the impact)
         aligned = np.empty_like(got.channels)
@@ -248,6 +268,52 @@ def _parabola(points: list[tuple[float, float]]) -> tuple[float, float, float] |
     c = y1 - a * x1 * x1 - b * x1
     l0 = -b / (2.0 * a)
     return a, l0, c - b * b / (4.0 * a)
+
+
+def _of_kind(search: _Search, kind: FlatKind) -> list[Trial]:
+    return sorted((tr for tr in search.trials if tr.kind == kind), key=lambda tr: tr.length)
+
+
+def _refine(search: _Search, kind: FlatKind, runs: int) -> Trial:
+    """Successive parabolic steps in log length from the kind's best run (golden steps where
+    the parabola is not convex, a grid step outwards at the ends); the best run after."""
+    for _ in range(runs):
+        mine = _of_kind(search, kind)
+        i = min(range(len(mine)), key=lambda k: mine[k].cost)
+        u = [math.log(tr.length) for tr in mine]
+        if i == 0:
+            nxt = u[0] - GRID_STEP
+        elif i == len(mine) - 1:
+            nxt = u[-1] + GRID_STEP
+        else:
+            par = _parabola([(u[k], mine[k].cost) for k in (i - 1, i, i + 1)])
+            far = i - 1 if u[i] - u[i - 1] > u[i + 1] - u[i] else i + 1
+            golden = u[i] + 0.382 * (u[far] - u[i])
+            nxt = golden if par is None else min(max(par[1], u[i - 1]), u[i + 1])
+            if min(abs(nxt - x) for x in u) < MIN_STEP:
+                nxt = golden
+        lo, hi = math.log(LENGTH_RANGE[0]), math.log(LENGTH_RANGE[1])
+        if not lo <= nxt <= hi or min(abs(nxt - x) for x in u) < MIN_STEP:
+            break
+        search.run(kind, math.exp(nxt))
+    return min(_of_kind(search, kind), key=lambda tr: tr.cost)
+
+
+def _interval(search: _Search, kind: FlatKind, best: Trial) -> tuple[float, float]:
+    """The lengths where the cost's parabola through the best run and its nearest runs either
+    side (log length) stays within the χ² bound; without one, the span of runs within it."""
+    bound = 1.0 + 3.84 / (DOF_PER_WINDOW * search.windows)
+    mine = _of_kind(search, kind)
+    i = mine.index(best)
+    if 0 < i < len(mine) - 1:
+        pts = [(math.log(mine[k].length), mine[k].cost) for k in (i - 1, i, i + 1)]
+        par = _parabola(pts)
+        if par is not None:
+            a, u0, j0 = par
+            half = math.sqrt(max(best.cost * bound - j0, 0.0) / a)
+            return min(math.exp(u0 - half), best.length), max(math.exp(u0 + half), best.length)
+    ok = [tr.length for tr in mine if tr.cost <= best.cost * bound]
+    return min(ok), max(ok)
 
 
 def fit_channels(
@@ -306,32 +372,19 @@ def fit_channels(
             wheel.load,
             speed=speed,
         )
-    best = min(search.trials, key=lambda tr: tr.cost)
-    kind = best.kind
-    # the cost's parabola in log length through the kind's best grid point and its
-    # neighbours, and the interval where it stays within the χ² bound
-    mine = sorted((tr for tr in search.trials if tr.kind == kind), key=lambda tr: tr.length)
-    i = mine.index(best)
-    near = mine[max(0, min(i - 1, len(mine) - 3)) :][:3]
-    bound = 1.0 + 3.84 / (DOF_PER_WINDOW * search.windows)
-    par = _parabola([(math.log(tr.length), tr.cost) for tr in near]) if len(near) == 3 else None
-    length = best.length
-    low = high = best.length
-    if par is not None:
-        a, u0, j0 = par
-        if math.log(near[0].length) <= u0 <= math.log(near[-1].length) and j0 > 0.0:
-            half = math.sqrt(max(min(j0, best.cost) * (bound - 1.0), 0.0) / a)
-            length = math.exp(u0)
-            low, high = math.exp(u0 - half), math.exp(u0 + half)
-        else:
-            par = None
-    if par is None:  # no convex parabola: the interval spans every run within the bound
-        ok = [tr.length for tr in mine if tr.cost <= best.cost * bound]
-        low, high = min(ok), max(ok)
-    low = max(low, LENGTH_RANGE[0] * 0.5)
-    final = search.run(kind, length)  # at the length found, with the phase as last aligned
-    if final is None or final.cost > best.cost:
-        final = best
+    best_of: dict[FlatKind, Trial] = {}
+    for tr in search.trials:
+        if tr.kind not in best_of or tr.cost < best_of[tr.kind].cost:
+            best_of[tr.kind] = tr
+    lowest = min(tr.cost for tr in best_of.values())
+    refined: dict[FlatKind, Trial] = {}
+    for k, tr in best_of.items():
+        if tr.cost <= KIND_REFINE_RATIO * lowest:
+            runs = REFINE_RUNS if tr.cost == lowest else REFINE_RUNS - 1
+            refined[k] = _refine(search, k, runs)
+    kind = min(refined, key=lambda k: refined[k].cost)
+    final = refined[kind]
+    low, high = _interval(search, kind, final)
     low, high = min(low, final.length), max(high, final.length)
     return CribEstimate(
         flat_of(wheel.radius, kind, final.length, final.phase),
