@@ -160,6 +160,8 @@ def simulate_on_track(
         sample_t,
         np.ascontiguousarray(zeta.real),
         np.ascontiguousarray(zeta.imag),
+        np.empty((st.WORK_ROWS, mt.n_modes)),
+        np.empty((2, 4)),
         float(y0),
         float(init.v_c),
         float(f0),

@@ -33,7 +33,7 @@ Worked example: ``sim_core.track.passage.simulate_on_track`` is the only caller.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numba
 import numpy as np
@@ -49,13 +49,25 @@ N_COLS = 10
 # extrema
 E_PEAK_FORCE, E_MIN_FORCE, E_PEAK_DELTA, E_T_FLIGHT, E_STEPS = range(5)
 N_EXTREMA = 5
+WORK_ROWS = 16
+"""Rows of ``run``'s work array (one column a mode): the nominal and a trial step's
+coefficients (6 each), the pending τφ₂ (2), a trial's prediction (2)."""
 
 EV_LOSS, EV_CONTACT, EV_YIELD, EV_UNYIELD = 0, 1, 2, 3
 OK, TOO_MANY_STEPS, TOO_MANY_TRANSITIONS = 0, 1, 2
 SERIES_LIMIT = 1e-3
 """Below this |λτ| the φ functions are summed as series (their closed forms cancel)."""
 
-_fast = numba.njit(cache=True, fastmath=True)
+_NO_REFCOUNTS: dict[str, Any] = {"_nrt": False}
+"""``run`` is compiled without numba's runtime: it allocates nothing (the caller passes its work
+arrays), and the reference counts numba would otherwise keep on every array it reads from
+the ``Modes``, ``Table`` and ``State`` tuples (atomic increments and decrements, ~60 a step)
+cost more than the stepping itself on a small model (measured: 8.7 -> 2.3 ms on the site
+case with 4 modes; the private numba option of the pinned numba)."""
+
+_LOOP_MATH = {"reassoc", "contract"}
+"""The stepper's floating-point flags: sums over the modes may be reordered (vectorised) and
+multiplies fused with adds; no assumption that values are finite (the loop compares with ±inf)."""
 
 
 class Modes(NamedTuple):
@@ -96,25 +108,22 @@ class Wheel(NamedTuple):
 class State(NamedTuple):
     """The modes at the last step's end, t, and a trial step's end (one entry a mode).
 
-    ζ(t) = p + b·R·F: the last step's prediction p (zr, zi) without its end force, R at
-    x(t) (hr, hi), that step's τφ₂ (br, bi) and the force F at t. A trial writes its own
-    prediction (pr, pi) and R at its end (gr, gi); taking the step swaps them in. ``nsh``:
-    the four shape functions."""
+    ζ(t) = p + b·R(x(t))·F: the last step's prediction p (zr, zi) without its end force,
+    that step's τφ₂ b (the nominal coefficients' row, or a copy in (br, bi)) and the force F
+    at t. A trial writes its own prediction into (pr, pi); taking the step swaps them in.
+    ``nsh``, ``nsa``: the four shape functions at a trial step's end and start."""
 
     zr: NDArray[np.float64]
     zi: NDArray[np.float64]
-    hr: NDArray[np.float64]
-    hi: NDArray[np.float64]
     br: NDArray[np.float64]
     bi: NDArray[np.float64]
     pr: NDArray[np.float64]
     pi: NDArray[np.float64]
-    gr: NDArray[np.float64]
-    gi: NDArray[np.float64]
     nsh: NDArray[np.float64]
+    nsa: NDArray[np.float64]
 
 
-@_fast
+@numba.njit(cache=True, inline="always")
 def coefficients(md: Modes, tau: float, co: NDArray[np.float64]) -> None:
     """Rows of ``co``: Re, Im of e^{λτ}, τ(φ₁ − φ₂)(λτ) and τ·φ₂(λτ), by series where λτ is small."""
     for j in range(md.lam_r.size):
@@ -179,43 +188,40 @@ def residual(e: int, xi: float, n: NDArray[np.float64], md: Modes) -> float:
     return r + (1.0 - f) * md.bubble[e, k] + f * md.bubble[e, k + 1]
 
 
-@_fast
-def rows_into(
-    e: int, n: NDArray[np.float64], md: Modes, gr: NDArray[np.float64], gi: NDArray[np.float64]
-) -> None:
-    """R(x) of every mode: the element's rows through the shape functions."""
-    d = 2 * e
-    r0, r1, r2, r3 = md.row_r[d], md.row_r[d + 1], md.row_r[d + 2], md.row_r[d + 3]
-    i0, i1, i2, i3 = md.row_i[d], md.row_i[d + 1], md.row_i[d + 2], md.row_i[d + 3]
-    n0, n1, n2, n3 = n[0], n[1], n[2], n[3]
-    for j in range(gr.size):
-        gr[j] = n0 * r0[j] + n1 * r1[j] + n2 * r2[j] + n3 * r3[j]
-        gi[j] = n0 * i0[j] + n1 * i1[j] + n2 * i2[j] + n3 * i3[j]
-
-
-@_fast
+@numba.njit(cache=True, inline="always")
 def predict(
+    ea: int,
+    na: NDArray[np.float64],
     e: int,
     n: NDArray[np.float64],
     md: Modes,
     co: NDArray[np.float64],
+    lr: NDArray[np.float64],
+    li: NDArray[np.float64],
     sc: State,
     fa: float,
 ) -> tuple[float, float]:
-    """The modes at the step's end without its end force, into (pr, pi), and R at the end
-    into (gr, gi); returns (their deflection there, its compliance Σ Re(τφ₂·R²))."""
+    """The modes at the step's end without its end force, into (pr, pi); returns (their
+    deflection there, its compliance Σ Re(τφ₂·R²)). The step starts in element ``ea`` (shape
+    functions ``na``) with the last step's τφ₂ (lr, li) pending, and ends in ``e`` (``n``).
+
+    R at both ends is read from the element rows, not kept: on all but one step in ~50 both
+    ends lie in one element, whose rows are read once."""
+    d = 2 * ea
+    a0, a1, a2, a3 = md.row_r[d], md.row_r[d + 1], md.row_r[d + 2], md.row_r[d + 3]
+    c0, c1, c2, c3 = md.row_i[d], md.row_i[d + 1], md.row_i[d + 2], md.row_i[d + 3]
     d = 2 * e
     r0, r1, r2, r3 = md.row_r[d], md.row_r[d + 1], md.row_r[d + 2], md.row_r[d + 3]
     i0, i1, i2, i3 = md.row_i[d], md.row_i[d + 1], md.row_i[d + 2], md.row_i[d + 3]
+    m0, m1, m2, m3 = na[0] * fa, na[1] * fa, na[2] * fa, na[3] * fa
     n0, n1, n2, n3 = n[0], n[1], n[2], n[3]
     er, ei, ar, ai, br, bi = co[0], co[1], co[2], co[3], co[4], co[5]
-    zr, zi, hr, hi, lr, li = sc.zr, sc.zi, sc.hr, sc.hi, sc.br, sc.bi
-    pr, pi, gr, gi = sc.pr, sc.pi, sc.gr, sc.gi
+    zr, zi, pr, pi = sc.zr, sc.zi, sc.pr, sc.pi
     w = 0.0
     b = 0.0
     for j in range(zr.size):
-        u_r = hr[j] * fa
-        u_i = hi[j] * fa
+        u_r = m0 * a0[j] + m1 * a1[j] + m2 * a2[j] + m3 * a3[j]
+        u_i = m0 * c0[j] + m1 * c1[j] + m2 * c2[j] + m3 * c3[j]
         z_r = zr[j] + lr[j] * u_r - li[j] * u_i
         z_i = zi[j] + lr[j] * u_i + li[j] * u_r
         p_r = er[j] * z_r - ei[j] * z_i + ar[j] * u_r - ai[j] * u_i
@@ -224,36 +230,49 @@ def predict(
         pi[j] = p_i
         h_r = n0 * r0[j] + n1 * r1[j] + n2 * r2[j] + n3 * r3[j]
         h_i = n0 * i0[j] + n1 * i1[j] + n2 * i2[j] + n3 * i3[j]
-        gr[j] = h_r
-        gi[j] = h_i
         w += h_r * p_r - h_i * p_i
         b += br[j] * (h_r * h_r - h_i * h_i) - 2.0 * bi[j] * (h_r * h_i)
     return w, b
 
 
-@_fast
-def _rail_at(md: Modes, sc: State, fa: float) -> tuple[float, float]:
-    """The rail's deflection and velocity at the last step's end, Σ Re(R·ζ) and Σ Re(R·ζ̇),
-    with ζ = p + b·R·F; ζ̇ = λζ + R·F into the state's (pr, pi)."""
-    zr, zi, hr, hi, lr, li = sc.zr, sc.zi, sc.hr, sc.hi, sc.br, sc.bi
+@numba.njit(cache=True, inline="always")
+def _rail_at(
+    e: int,
+    n: NDArray[np.float64],
+    md: Modes,
+    lr: NDArray[np.float64],
+    li: NDArray[np.float64],
+    sc: State,
+    fa: float,
+) -> tuple[float, float]:
+    """The rail's deflection and velocity at the last step's end x (element ``e``, shape
+    functions ``n``), Σ Re(R·ζ) and Σ Re(R·ζ̇), with ζ = p + b·R·F (b: lr, li);
+    ζ̇ = λζ + R·F into the state's (pr, pi)."""
+    d = 2 * e
+    r0, r1, r2, r3 = md.row_r[d], md.row_r[d + 1], md.row_r[d + 2], md.row_r[d + 3]
+    i0, i1, i2, i3 = md.row_i[d], md.row_i[d + 1], md.row_i[d + 2], md.row_i[d + 3]
+    n0, n1, n2, n3 = n[0], n[1], n[2], n[3]
+    zr, zi = sc.zr, sc.zi
     dr, di = sc.pr, sc.pi
     wv = 0.0
     vw = 0.0
     for j in range(zr.size):
-        u_r = hr[j] * fa
-        u_i = hi[j] * fa
+        h_r = n0 * r0[j] + n1 * r1[j] + n2 * r2[j] + n3 * r3[j]
+        h_i = n0 * i0[j] + n1 * i1[j] + n2 * i2[j] + n3 * i3[j]
+        u_r = h_r * fa
+        u_i = h_i * fa
         z_r = zr[j] + lr[j] * u_r - li[j] * u_i
         z_i = zi[j] + lr[j] * u_i + li[j] * u_r
         d_r = md.lam_r[j] * z_r - md.lam_i[j] * z_i + u_r
         d_i = md.lam_r[j] * z_i + md.lam_i[j] * z_r + u_i
         dr[j] = d_r
         di[j] = d_i
-        wv += hr[j] * z_r - hi[j] * z_i
-        vw += hr[j] * d_r - hi[j] * d_i
+        wv += h_r * z_r - h_i * z_i
+        vw += h_r * d_r - h_i * d_i
     return wv, vw
 
 
-@_fast
+@numba.njit(cache=True, inline="always")
 def _dot_re(
     ar: NDArray[np.float64],
     ai: NDArray[np.float64],
@@ -300,12 +319,14 @@ def _wheel_at(y: float, v: float, fa: float, st: float, wh: Wheel) -> float:
     return y + st * v - wh.load * st * st / (2.0 * wh.mass) + st * st * fa / (3.0 * wh.mass)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def trial(
     md: Modes,
     tab: Table,
     wh: Wheel,
     co: NDArray[np.float64],
+    lr: NDArray[np.float64],
+    li: NDArray[np.float64],
     sc: State,
     t: float,
     st: float,
@@ -315,14 +336,17 @@ def trial(
     he: int,
     ht: int,
 ) -> tuple[float, float, float, int, int]:
-    """A step of length ``st`` (coefficients ``co``) up to its end force: fills the state's
-    (pr, pi), (gr, gi); returns (δ*, κ, the wheel's height without the end force, element,
-    table hints)."""
+    """A step of length ``st`` (coefficients ``co``; the last step's τφ₂ lr, li pending) up to
+    its end force: fills the state's (pr, pi); returns (δ*, κ, the wheel's height without the
+    end force, element, table hints)."""
     nsh = sc.nsh
+    xa = wh.speed * t
+    ea = element_at(xa, md.ex, he)
+    shapes(xa, ea, md, sc.nsa)
     xb = wh.speed * (t + st)
-    he = element_at(xb, md.ex, he)
+    he = element_at(xb, md.ex, ea)
     xi = shapes(xb, he, md, nsh)
-    w0, bc = predict(he, nsh, md, co, sc, fa)
+    w0, bc = predict(ea, sc.nsa, he, nsh, md, co, lr, li, sc, fa)
     ypred = _wheel_at(y, v, fa, st, wh)
     ckb, _, ht = table_eval(tab.x, tab.y, tab.slope_left, tab.slope_right, tab.period, xb, ht)
     kappa = st * st / (6.0 * wh.mass) - bc + residual(he, xi, nsh, md)
@@ -338,7 +362,7 @@ def _end_delta(dstar: float, kappa: float, contact: bool, wh: Wheel) -> tuple[fl
     return f, dstar - kappa * f
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, fastmath=_LOOP_MATH, **_NO_REFCOUNTS)
 def run(
     md: Modes,
     tab: Table,
@@ -349,6 +373,8 @@ def run(
     sample_t: NDArray[np.float64],
     zr: NDArray[np.float64],
     zi: NDArray[np.float64],
+    work: NDArray[np.float64],
+    shp: NDArray[np.float64],
     y0: float,
     v0: float,
     f0: float,
@@ -371,21 +397,15 @@ def run(
     """
     m = md.lam_r.size
     nc = md.crib_lo.size
-    co_n = np.empty((6, m))
-    co_t = np.empty((6, m))
-    sc = State(
-        zr,
-        zi,
-        np.empty(m),
-        np.empty(m),
-        np.zeros(m),  # ζ(t0) = p: no end force pending
-        np.zeros(m),
-        np.empty(m),
-        np.empty(m),
-        np.empty(m),
-        np.empty(m),
-        np.empty(4),
-    )
+    co_n = work[0:6]
+    co_t = work[6:12]
+    work[12:14] = 0.0
+    sc = State(zr, zi, work[12], work[13], work[14], work[15], shp[0], shp[1])
+    # the pending τφ₂: zero at t0 (ζ(t0) = p), then the last step's, read from the nominal
+    # coefficients while the last step was nominal and they have not changed since
+    lr = sc.br
+    li = sc.bi
+    pending_nominal = False
     nsh = sc.nsh
     tau_n = -1.0
     he = 0
@@ -400,12 +420,9 @@ def run(
     x = wh.speed * t0
     he = element_at(x, md.ex, he)
     xi = shapes(x, he, md, nsh)
-    rows_into(he, nsh, md, sc.hr, sc.hi)
     contact = fa > 0.0
     ck, _, ht = table_eval(tab.x, tab.y, tab.slope_left, tab.slope_right, tab.period, x, ht)
-    w_a = 0.0
-    for j in range(m):
-        w_a += sc.hr[j] * zr[j] - sc.hi[j] * zi[j]
+    w_a, _ = _rail_at(he, nsh, md, lr, li, sc, fa)
     delta_a = -y + ck + w_a - residual(he, xi, nsh, md) * fa
     plastic = plastic_law and contact and delta_a > wh.d_y
     n_tr = 0
@@ -434,6 +451,13 @@ def run(
             k_steps = math.ceil(span / h_max * (1.0 - 1e-12))
             tau = span / k_steps
             if abs(tau - tau_n) > 1e-9 * tau:
+                if pending_nominal:  # keep the pending τφ₂ before the nominal row changes
+                    for j in range(m):
+                        sc.br[j] = co_n[4, j]
+                        sc.bi[j] = co_n[5, j]
+                    lr = sc.br
+                    li = sc.bi
+                    pending_nominal = False
                 coefficients(md, tau, co_n)
                 tau_n = tau
         for k in range(k_steps):
@@ -443,11 +467,15 @@ def run(
             nominal = abs(remaining - tau_n) <= 1e-9 * tau_n
             while remaining > tol_t:
                 co = co_n
+                used_n = True
                 if not nominal:
                     coefficients(md, remaining, co_t)
                     co = co_t
+                    used_n = False
                 st = remaining
-                dstar, kappa, ypred, he, ht = trial(md, tab, wh, co, sc, t, st, y, v, fa, he, ht)
+                dstar, kappa, ypred, he, ht = trial(
+                    md, tab, wh, co, lr, li, sc, t, st, y, v, fa, he, ht
+                )
                 fb, delta_b = _end_delta(dstar, kappa, contact, wh)
                 # the first event on the way, as a function g of the step length rising through 0
                 event = -1
@@ -476,7 +504,9 @@ def run(
                         if not (lo < s < hi):
                             s = 0.5 * (lo + hi)
                         coefficients(md, s, co_t)
-                        ds, ks, _, he, ht = trial(md, tab, wh, co_t, sc, t, s, y, v, fa, he, ht)
+                        ds, ks, _, he, ht = trial(
+                            md, tab, wh, co_t, lr, li, sc, t, s, y, v, fa, he, ht
+                        )
                         if with_force:
                             _, ds = _end_delta(ds, ks, True, wh)
                         gs = sgn * (ds - level)
@@ -497,19 +527,26 @@ def run(
                     st = hi
                     coefficients(md, st, co_t)
                     dstar, kappa, ypred, he, ht = trial(
-                        md, tab, wh, co_t, sc, t, st, y, v, fa, he, ht
+                        md, tab, wh, co_t, lr, li, sc, t, st, y, v, fa, he, ht
                     )
                     fb, delta_b = _end_delta(dstar, kappa, contact and with_force, wh)
                     if not with_force:
                         delta_b = 0.0
                     co = co_t
-                # take the step: its prediction and end rows become the state, its τφ₂ the pending
-                sc = State(
-                    sc.pr, sc.pi, sc.gr, sc.gi, sc.br, sc.bi, sc.zr, sc.zi, sc.hr, sc.hi, nsh
-                )
-                for j in range(m):
-                    sc.br[j] = co[4, j]
-                    sc.bi[j] = co[5, j]
+                    used_n = False
+                # take the step: its prediction becomes the state, its τφ₂ the pending one
+                sc = State(sc.pr, sc.pi, sc.br, sc.bi, sc.zr, sc.zi, nsh, sc.nsa)
+                if used_n:
+                    lr = co_n[4]
+                    li = co_n[5]
+                    pending_nominal = True
+                else:
+                    for j in range(m):
+                        sc.br[j] = co[4, j]
+                        sc.bi[j] = co[5, j]
+                    lr = sc.br
+                    li = sc.bi
+                    pending_nominal = False
                 y = ypred + st * st * fb / (6.0 * wh.mass)
                 v = v - wh.load * st / wh.mass + st * (fa + fb) / (2.0 * wh.mass)
                 if not contact:
@@ -563,7 +600,7 @@ def run(
             xi = shapes(xs, he, md, nsh)
             # the state at t (R there is the last step's end row): ζ = p + b·R·F, and the rail's
             # deflection and velocity under the wheel, Σ Re(R·ζ) and Σ Re(R·(λζ + R·F))
-            wv, vw = _rail_at(md, sc, fa)
+            wv, vw = _rail_at(he, nsh, md, lr, li, sc, fa)
             dr, di = sc.pr, sc.pi
             rr = residual(he, xi, nsh, md)
             ck, _, ht = table_eval(
