@@ -9,10 +9,12 @@ losses, dent and, at a site with a detector, the crib channels' peak), stops the
 service cleanly and prints where its MCAP log and Rerun recording are, and what of
 the crib channels they hold. No network beyond loopback, no viewer needed.
 
-The default site (``examples/site.toml``) is a rail on sleepers with an 8-crib detector,
-which the wheel-flat diagnosis does not fit yet: there the measured forces are not sent.
-``--site examples/site_compliant.toml`` (the paper's lumped foundation) streams them too,
-and the twin diagnoses four wheels while the train streams.
+The default site (``examples/site.toml``) is a rail on sleepers with an 8-crib detector:
+the detector's records of four wheels (made by the generator: the site's track, a rough
+rail the twin does not know, noise) are streamed alongside the train and the twin
+diagnoses them from their crib channels while the train streams.
+``--site examples/site_compliant.toml`` (the paper's lumped foundation) does the same with
+a measured contact force.
 
 The demo streams the same sample train every time, so each run starts the twin
 on a fresh rail state of its own (a temporary ``--state`` directory): with the
@@ -83,9 +85,9 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def diagnosed(site: SiteConfig) -> bool:
-    """Whether the twin diagnoses this site's measured forces: the fit models a rigid or
-    one-mass foundation, not yet a rail on sleepers."""
-    return site.foundation.kind in ("rigid", "compliant")
+    """Whether the twin diagnoses this site's measurements: a contact force on a rigid or
+    one-mass foundation, or a detector's crib channels on a rail on supports."""
+    return site.foundation.kind in ("rigid", "compliant") or site.detector is not None
 
 
 def channels_logged(mcap_files: list[Path], site_id: str) -> str | None:
@@ -137,7 +139,7 @@ def run(args: argparse.Namespace) -> int:
         args.recordings.mkdir(parents=True, exist_ok=True)
         measured_proc = None
         if diagnosed(site):
-            measured_proc = _stream_measurements(args, endpoint)
+            measured_proc = _stream_measurements(args, endpoint, site)
         else:
             _no_measurements(site)
         feeder = subprocess.run(
@@ -180,9 +182,12 @@ def run(args: argparse.Namespace) -> int:
     return feeder.returncode or measured_code
 
 
-def _stream_measurements(args: argparse.Namespace, endpoint: str) -> subprocess.Popen[bytes]:
-    """Make the measured force of four wheels, then publish each when its wheel leaves the
-    site, alongside the train (``railtwin feed-measured``)."""
+def _stream_measurements(
+    args: argparse.Namespace, endpoint: str, site: SiteConfig
+) -> subprocess.Popen[bytes]:
+    """Make the measurement of four wheels (the contact force, or the detector's crib
+    channels), then publish each when its wheel leaves the site, alongside the train
+    (``railtwin feed-measured``)."""
     saved = args.recordings / "demo-measured.json"
     measured_cmd = [
         *RAILTWIN,
@@ -192,9 +197,14 @@ def _stream_measurements(args: argparse.Namespace, endpoint: str) -> subprocess.
         "--site-file",
         str(args.site),
     ]
+    what = (
+        f"detector's {len(site.detector.cribs)} crib channels"
+        if site.detector is not None
+        else "measured force"
+    )
     print(
-        "demo: the site's measured force of four wheels, made by the generator "
-        "(each wheel's own outline, unknown roughness and damping, sensor noise)",
+        f"demo: the site's {what} of four wheels, made by the generator "
+        "(each wheel's own outline, unknown roughness, sensor chain and noise)",
         flush=True,
     )
     subprocess.run([*measured_cmd, "--save", str(saved)], cwd=ROOT, check=False)
@@ -219,13 +229,10 @@ def _stream_measurements(args: argparse.Namespace, endpoint: str) -> subprocess.
 
 
 def _no_measurements(site: SiteConfig) -> None:
-    """Say why no measured force is sent to a site the diagnosis does not fit."""
-    cribs = len(site.detector.cribs) if site.detector is not None else 0
+    """Say why no measurement is sent: a rail on supports without a detector measures none."""
     print(
-        f"demo: streaming the train over a rail on sleepers ({site.foundation.kind}"
-        + (f", {cribs} crib channels" if cribs else "")
-        + "); no measured forces: the diagnosis does not fit such a site yet "
-        "(railtwin demo --site examples/site_compliant.toml diagnoses four wheels)",
+        f"demo: streaming the train over a rail on sleepers ({site.foundation.kind}) with no "
+        "detector: no measurements to diagnose (examples/site.toml has an 8-crib detector)",
         flush=True,
     )
 

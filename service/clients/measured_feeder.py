@@ -35,7 +35,7 @@ from schemas.messages import ServiceError, TrainFile
 from schemas.site import SiteConfig
 from service.clients.feeder import load_train, wait_matching
 from service.clients.measured_io import MeasuredFileError, read_measured
-from service.clients.synthesize import measure, passage_tread
+from service.clients.synthesize import measured_passage, passage_tread
 from service.wire.encoding import json_encoding
 from service.wire.keyspace import SiteKeys
 from service.wire.measured_channels import CHANNELS_FIELD, channels_mismatch
@@ -163,16 +163,8 @@ def feed_measured(
             flush=True,
         )
         for i, w in enumerate(wheels):
-            m = measure(site, w, passage_tread(w), seed=1000 + i, diagnoser=diagnoser)
-            payloads.append(
-                MeasuredPassage(
-                    passage_id=w.passage_id,
-                    sample_rate=m.sample_rate,
-                    t_start=m.t_start,
-                    force=m.force.tolist(),
-                    speed=w.speed,
-                )
-            )
+            m, _ = measured_passage(site, w, passage_tread(w), seed=1000 + i, diagnoser=diagnoser)
+            payloads.append(m)
     if a.save is not None:
         a.save.write_text(json.dumps([m.model_dump() for m in payloads]), encoding="utf-8")
         return 0

@@ -8,6 +8,10 @@
 Simulates the passage's wheel (with the given flat, or its own outline) over the site
 with what the twin does not know added (``sim_core.diagnosis.synthetic``), through the
 site's measuring chain, and writes the CSV ``railtwin diagnose`` reads (``t_s,force_N``).
+At a site with a detector (a rail on discrete supports or slab with cribs) it writes the
+detector's crib channels instead (``t_s,<crib ids>``; ``sim_core.diagnosis.crib_synthetic``:
+the site's own track, unknown roughness and noise; ``--damping-ratio`` and
+``--speed-error`` belong to the one-mass foundation and are not used there).
 """
 
 from __future__ import annotations
@@ -17,12 +21,14 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from schemas.diagnosis import MeasuredPassage
 from schemas.messages import WheelPassage
 from schemas.site import SiteConfig
 from service.wire.site import load_site
 
 if TYPE_CHECKING:  # the physics (numba, scipy) is imported when used: ``railtwin --help`` is quick
     from service.physics.diagnosis import Diagnoser
+    from sim_core.diagnosis.crib_synthetic import CribRecord
     from sim_core.diagnosis.forward import Tread
     from sim_core.diagnosis.synthetic import SyntheticMeasurement
 
@@ -60,6 +66,78 @@ def measure(
         rate,
         d.sensor,
         Perturbations(noise, roughness, damping, speed_error, seed),
+    )
+
+
+def measure_channels(
+    site: SiteConfig,
+    passage: WheelPassage,
+    tread: Tread | None,
+    *,
+    seed: int,
+    noise: float = 0.02,
+    roughness: float = 3e-6,
+    diagnoser: Diagnoser | None = None,
+) -> CribRecord:
+    """What the site's detector would record of ``passage`` with ``tread`` (None: round);
+    ``ValueError`` at a site without a detector on a rail on supports."""
+    from service.physics.diagnosis import Diagnoser
+    from sim_core.diagnosis.crib_forward import CribWheel
+    from sim_core.diagnosis.crib_synthetic import crib_record
+
+    d = diagnoser or Diagnoser(site)
+    if d.crib_site is None:
+        raise ValueError(f"site {site.site_id!r} has no detector on a rail on supports")
+    wheel = CribWheel(passage.mass, passage.load, passage.radius, d.physics.contact_model(passage))
+    return crib_record(
+        d.crib_site,
+        wheel,
+        passage.speed,
+        tread,
+        sample_rate=site.diagnosis.sample_rate or 10_000.0,
+        noise_fraction=noise,
+        roughness_rms=roughness,
+        seed=seed,
+    )
+
+
+def measured_passage(
+    site: SiteConfig,
+    passage: WheelPassage,
+    tread: Tread | None,
+    *,
+    seed: int,
+    diagnoser: Diagnoser | None = None,
+) -> tuple[MeasuredPassage, float]:
+    """The site's measurement of ``passage`` as the twin receives it (the contact force, or
+    the detector's channels where the site has one), with default perturbations; and the
+    true peak contact force (N)."""
+    from service.physics.diagnosis import Diagnoser
+
+    d = diagnoser or Diagnoser(site)
+    if d.crib_site is not None:
+        rec = measure_channels(site, passage, tread, seed=seed, diagnoser=d)
+        ids = [c.id for c in d.crib_site.cribs]
+        return (
+            MeasuredPassage(
+                passage_id=passage.passage_id,
+                sample_rate=rec.sample_rate,
+                t_start=0.0,
+                channels={i: row.tolist() for i, row in zip(ids, rec.channels, strict=True)},
+                speed=passage.speed,
+            ),
+            rec.true_peak_force,
+        )
+    m = measure(site, passage, tread, seed=seed, diagnoser=d)
+    return (
+        MeasuredPassage(
+            passage_id=passage.passage_id,
+            sample_rate=m.sample_rate,
+            t_start=m.t_start,
+            force=m.force.tolist(),
+            speed=passage.speed,
+        ),
+        m.true_peak_force,
     )
 
 
@@ -119,6 +197,21 @@ def write_measurement(a: argparse.Namespace, site: SiteConfig, passage: WheelPas
         tread = Flat.ideal(R, a.length, a.phase)
     elif a.flat == "rounded_flat":
         tread = Flat.rounded(R, a.length, None, a.phase)
+    from service.physics.diagnosis import Diagnoser
+
+    d = Diagnoser(site)
+    if d.crib_site is not None:
+        rec = measure_channels(
+            site, passage, tread, seed=a.seed, noise=a.noise, roughness=a.roughness, diagnoser=d
+        )
+        ids = ",".join(c.id for c in d.crib_site.cribs)
+        rows = np.column_stack([rec.t, rec.channels.T])
+        np.savetxt(a.out, rows, delimiter=",", header=f"t_s,{ids}", comments="", fmt="%.9g")
+        print(
+            f"wrote {a.out}: {rec.channels.shape[0]} crib channels of {rec.channels.shape[1]} "
+            f"samples, true peak {rec.true_peak_force / 1e3:.1f} kN"
+        )
+        return 0
     m = measure(
         site,
         passage,
@@ -128,6 +221,7 @@ def write_measurement(a: argparse.Namespace, site: SiteConfig, passage: WheelPas
         roughness=a.roughness,
         damping_ratio=a.damping_ratio,
         speed_error=a.speed_error,
+        diagnoser=d,
     )
     rows = np.column_stack([m.t, m.force])
     np.savetxt(a.out, rows, delimiter=",", header="t_s,force_N", comments="", fmt="%.9g")
