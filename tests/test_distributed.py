@@ -231,9 +231,12 @@ def test_bad_input_is_one_line_and_exit_2(case: str, tmp_path: Path, logs: Path)
         log = sorted(logs.glob("*.mcap"))[0]
         extra += ["--scheduler", f"tcp://127.0.0.1:{port}", "--scheduler-timeout", "1"]
         want = "cannot reach the Dask scheduler"
-    else:
-        site = str(ROOT / "examples" / "site.toml")
-        want = "foundation is 'discrete'"
+    else:  # a rail on sleepers with no detector measures nothing the diagnosis fits
+        text = (ROOT / "examples" / "site.toml").read_text(encoding="utf-8")
+        no_detector = tmp_path / "no_detector.toml"
+        no_detector.write_text(text[: text.index("[[detector.cribs]]")], encoding="utf-8")
+        site = str(no_detector)
+        want = "foundation is 'discrete' with no detector"
     code, message = _cli(str(log), "--site", site, *extra)
     assert code == 2 and want in message and "\n" not in message, message
 

@@ -121,11 +121,12 @@ def cmd_reanalyse(args: argparse.Namespace) -> int:
 
     site = load_site(args.site)
     assert isinstance(site, SiteConfig)
-    if site.foundation.kind not in ("rigid", "compliant"):
+    if site.foundation.kind not in ("rigid", "compliant") and site.detector is None:
         raise CommandError(
-            f"{args.site}: the site's foundation is {site.foundation.kind!r}: the diagnosis "
-            "fits a rigid or compliant (one-mass) foundation only (e.g. "
-            "examples/site_compliant.toml)",
+            f"{args.site}: the site's foundation is {site.foundation.kind!r} with no "
+            "detector: the diagnosis fits a contact force on a rigid or compliant (one-mass) "
+            "foundation, or a detector's crib channels on a rail on supports (e.g. "
+            "examples/site.toml)",
             EXIT_USAGE,
         )
     try:
