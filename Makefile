@@ -7,7 +7,8 @@
 #   make bench-reanalyse  re-analyse a generated 10 000-passage archive on 2 Dask workers (minutes)
 #   make figures  draw the paper's figures into figures/
 #   make soak     20 000-passage burst (memory must plateau), kill -9 mid-stream, recover (minutes)
-#   make validate the wheel-flat diagnosis: independent wide set + own generator, railtwin diagnose timed (~3 min)
+#   make validate the wheel-flat diagnosis: independent wide set + own generator, railtwin diagnose timed,
+#                 then the detector sites' crib channels (~5 min)
 #   make validate-track  the discrete/slab track against the independent reference's cases and ROSE (~3 min)
 #   make lint     ruff and mypy only
 #   make fleet-demo  router, three site twins, the fleet service, a growing flat's alarms (minutes)
@@ -98,6 +99,7 @@ soak: $(WARMED)
 
 validate: $(WARMED)
 	nice -n 5 $(BIN)/python -m validation.diagnosis_validation
+	nice -n 5 $(BIN)/python -m validation.detector_sites
 
 validate-track: $(WARMED)
 	nice -n 5 $(BIN)/python -m validation.track_validation --out validation/track_results.md
