@@ -74,7 +74,13 @@ WINDOW_BEFORE = 0.15
 WINDOW_AFTER = 0.008
 """s after a measured impact that its window covers (the impact and the first rebound)."""
 
-MAX_SHIFT = 40
+ANCHOR_REACH = 0.4
+"""m before the largest excess searched for the event's beginning (``anchor``)."""
+
+ANCHOR_LEVEL = 0.5
+"""Fraction of the largest |excess| that marks the event's beginning (``anchor``)."""
+
+MAX_SHIFT = 80
 """Samples either way over which a candidate's excess is aligned with the measured one."""
 
 PEAK_SEARCH = 0.25
@@ -270,6 +276,20 @@ def _parabola(points: list[tuple[float, float]]) -> tuple[float, float, float] |
     return a, l0, c - b * b / (4.0 * a)
 
 
+def anchor(
+    excess: NDArray[np.float64], t: NDArray[np.float64], inside: NDArray[np.bool_], speed: float
+) -> float:
+    """t*: where the flat's event begins in the record. The largest |excess| may be a later
+    bounce of a long flat (a 111 mm worn flat at 48 km/h bounced 0.28 m on); the event
+    begins at the first sample within ``ANCHOR_REACH`` before it where |excess| reaches
+    ``ANCHOR_LEVEL`` of that largest (the unloading dip, or the first impact)."""
+    a = np.where(inside, np.abs(excess), -np.inf)
+    i = int(np.argmax(a))
+    near = inside & (t >= t[i] - ANCHOR_REACH / speed) & (t <= t[i])
+    first = np.flatnonzero(near & (a >= ANCHOR_LEVEL * a[i]))
+    return float(t[first[0]]) if first.size else float(t[i])
+
+
 def _of_kind(search: _Search, kind: FlatKind) -> list[Trial]:
     return sorted((tr for tr in search.trials if tr.kind == kind), key=lambda tr: tr.length)
 
@@ -347,8 +367,7 @@ def fit_channels(
             wheel.load,
             speed=speed,
         )
-    s = np.sum(channels - template, axis=0)
-    t_star = float(t[int(np.argmax(np.where(inside, s, -np.inf)))])
+    t_star = anchor(np.sum(channels - template, axis=0), t, inside, speed)
     search = _Search(site, wheel, speed, t, channels, template, t_star)
     cost_round = search.cost(template)
     n = int(np.count_nonzero(search.mask)) * len(site.cribs)
