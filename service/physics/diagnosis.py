@@ -32,11 +32,12 @@ from service.physics.measurement_error import MeasurementError
 from service.physics.model_version import calibration_ref, model_version
 from service.physics.site_physics import SitePhysics
 from service.wire.measured_channels import CHANNELS_FIELD, channels_mismatch
-from sim_core.diagnosis.crib_fit import CribEstimate, fit_channels
+from sim_core.diagnosis.crib_fit import CribEstimate, fit_channels, flat_of
 from sim_core.diagnosis.crib_forward import CribSite, CribWheel, line_times
 from sim_core.diagnosis.crib_screen import round_template
 from sim_core.diagnosis.estimate import (
     DEFAULT_OPTIONS,
+    DEPTH_FACTORS,
     EXPLAINED_RATIO,
     FlatEstimate,
     estimate_flat,
@@ -536,7 +537,8 @@ class Diagnoser:
         """(contact point, low, high, detector point, low, high) at line speed: the fitted
         flat re-simulated over the site's record window [0, length] on the site's track
         (same phase: the impacts fall where they fell), the band over the length interval's
-        ends and the other kind at the fitted length. A round wheel's forecast is its static
+        ends, and worn flats 0.7 x as deep at the short end and 1.3 x at the long one. A
+        round wheel's forecast is its static
         load and its round template's peak (no simulation: the twin's rail is even)."""
         t_line = line_times(self.site.length, line_speed, sample_rate)
         if est.flat is None:
@@ -544,14 +546,17 @@ class Diagnoser:
             p, c = wheel.load, float(np.max(tpl))
             return p, p, p, c, c, c
         flat = est.flat
-        other: FlatKind = "rounded_flat" if flat.kind == "flat" else "flat"
-        from sim_core.diagnosis.crib_fit import flat_of
-
+        low, high = max(est.length_low, 1e-3), est.length_high
+        lo_df, hi_df = DEPTH_FACTORS
         runs = [
             flat,
-            flat_of(wheel.radius, flat.kind, max(est.length_low, 1e-3), flat.phase),
-            flat_of(wheel.radius, flat.kind, est.length_high, flat.phase),
-            flat_of(wheel.radius, other, flat.length, flat.phase),
+            flat_of(wheel.radius, flat.kind, low, flat.phase),
+            flat_of(wheel.radius, flat.kind, high, flat.phase),
+            # a worn flat's depth is not fitted (l²/16R): the band spans the worn depths
+            # met in service, shallow at the short end and deep at the long one, whichever
+            # kind fitted (at speed the kinds hit very differently)
+            flat_of(wheel.radius, "rounded_flat", low, flat.phase, lo_df),
+            flat_of(wheel.radius, "rounded_flat", high, flat.phase, hi_df),
         ]
         contact: list[float | None] = []
         detector: list[float | None] = []

@@ -87,11 +87,14 @@ PEAK_SEARCH = 0.25
 """Fraction of a turn around t* searched for a candidate's own peak."""
 
 
-def flat_of(radius: float, kind: FlatKind, length: float, phase: float) -> Flat:
-    """The candidate flat: a fresh chord or a worn flat of depth l²/16R."""
+def flat_of(
+    radius: float, kind: FlatKind, length: float, phase: float, depth_factor: float = 1.0
+) -> Flat:
+    """The candidate flat: a fresh chord, or a worn flat of depth ``depth_factor``·l²/16R."""
     if kind == "flat":
         return Flat("flat", length, ideal_flat_depth(radius, length), phase % TWO_PI)
-    return Flat("rounded_flat", length, typical_rounded_depth(radius, length), phase % TWO_PI)
+    depth = depth_factor * typical_rounded_depth(radius, length)
+    return Flat("rounded_flat", length, depth, phase % TWO_PI)
 
 
 @dataclass(frozen=True)
