@@ -540,6 +540,12 @@ def _study(sp: SubParsers) -> None:
     study.register(sp)
 
 
+def _calibrate(sp: SubParsers) -> None:
+    from service.cli import calibrate
+
+    calibrate.register(sp)
+
+
 def _fleet(sp: SubParsers) -> None:
     from service.cli import fleet
 
@@ -553,6 +559,7 @@ SERVICE_COMMANDS: dict[str, Callable[[SubParsers], None]] = {
     "synthesize": _synthesize,
     "replay": _replay,
     "diagnose": _diagnose,
+    "calibrate": _calibrate,
     "recover": _recover,
     "demo": _demo,
     "warm": _warm,

@@ -26,6 +26,7 @@ larger of the two; its interval is the estimate × exp(±1.96 sd).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -33,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from sim_core.calibration.identifiability import Identifiability, analyse
+from sim_core.calibration.identifiability import Identifiability, analyse, judge
 from sim_core.calibration.parameters import names, scaled, values
 from sim_core.calibration.residuals import Passage, Site, noise_sigma, residual
 from sim_core.calibration.sensitivities import Progress, _quiet, jacobian, residuals
@@ -125,6 +126,13 @@ def _informative(jac: Sequence[NDArray[np.float64]]) -> list[int]:
     cum = np.cumsum(share[order]) / max(float(share.sum()), 1e-300)
     count = int(np.searchsorted(cum, INFORMATIVE) + 1)
     return sorted(int(k) for k in order[:count])
+
+
+def _judged(ident: Identifiability, sd: NDArray[np.float64], prior_sd: float) -> Identifiability:
+    """The verdicts on the final standard deviations (a jackknife larger than the Fisher
+    information's says the wheels disagree: the parameter is not determined)."""
+    final = tuple(max(float(a), float(b)) for a, b in zip(sd, ident.posterior_sd, strict=True))
+    return dataclasses.replace(ident, identifiable=judge(final, prior_sd), posterior_sd=final)
 
 
 def _rms(r: NDArray[np.float64]) -> float:
@@ -283,7 +291,7 @@ def calibrate(
         jackknife_sd=tuple(float(v) for v in jack_sd),
         covariance=cov,
         fisher=fisher,
-        identifiability=analyse(fisher, prior_sd, keys),
+        identifiability=_judged(analyse(fisher, prior_sd, keys), sd, prior_sd),
         wheels=tuple(p.name for p in passages),
         sigma=tuple(sigma),
         rms_nominal=rms_nominal,

@@ -29,7 +29,15 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["IDENTIFIED", "PARTLY", "Combination", "Identifiability", "Verdict", "analyse"]
+__all__ = [
+    "IDENTIFIED",
+    "PARTLY",
+    "Combination",
+    "Identifiability",
+    "Verdict",
+    "analyse",
+    "judge",
+]
 
 Verdict = Literal["yes", "partly", "no"]
 
@@ -77,6 +85,19 @@ class Identifiability:
     """The others, best determined first."""
 
 
+def judge(sd: tuple[float, ...], prior_sd: float) -> tuple[Verdict, ...]:
+    """Each parameter's verdict from its standard deviation (of ln θ) against the prior's.
+
+    >>> judge((0.05, 0.15, 0.3), 0.2)
+    ('yes', 'partly', 'no')
+    """
+    out: list[Verdict] = []
+    for s in sd:
+        ratio = s / prior_sd
+        out.append("yes" if ratio < IDENTIFIED else "partly" if ratio < PARTLY else "no")
+    return tuple(out)
+
+
 def _normalised(v: NDArray[np.float64]) -> tuple[float, ...]:
     v = v / v[np.argmax(np.abs(v))]
     return tuple(float(x) for x in v)
@@ -102,10 +123,7 @@ def analyse(
             data_sd.append(float(np.sqrt(np.sum(vec[i, good] ** 2 / lam[good]))))
     post = np.linalg.inv(f + np.eye(n) / prior_sd**2)
     post_sd = tuple(float(np.sqrt(post[i, i])) for i in range(n))
-    verdicts: list[Verdict] = []
-    for s in post_sd:
-        ratio = s / prior_sd
-        verdicts.append("yes" if ratio < IDENTIFIED else "partly" if ratio < PARTLY else "no")
+    verdicts = judge(post_sd, prior_sd)
     weak: list[tuple[float, Combination]] = []
     strong: list[tuple[float, Combination]] = []
     for j in range(n):
@@ -117,7 +135,7 @@ def analyse(
     weak.sort(key=lambda p: -p[0])
     strong.sort(key=lambda p: p[0])
     return Identifiability(
-        tuple(verdicts),
+        verdicts,
         tuple(data_sd),
         post_sd,
         tuple(c for _, c in weak),
