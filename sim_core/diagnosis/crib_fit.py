@@ -56,7 +56,7 @@ GRID_STEP = math.log(1.6)
 MIN_STEP = 0.01
 """Smallest step in log length the refinement takes (1 %: below what the data resolve)."""
 
-REFINE_RUNS = 4
+REFINE_RUNS = 3
 """Runs refining the best kind's length (one fewer for the other kind, if refined)."""
 
 KIND_REFINE_RATIO = 2.0
