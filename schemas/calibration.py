@@ -27,6 +27,9 @@ wheels it has seen."""
 
 CALIBRATION_ID_PATTERN = r"^[0-9a-f]{16}$"
 
+HISTORY = 1000
+"""The online calibration keeps this many of its last updates."""
+
 
 class CalibrationRef(MessageModel):
     """Which calibration of the track a result used (echoed in a ``Diagnosis``)."""
@@ -113,12 +116,58 @@ class SiteCalibration(StrictModel):
         return CalibrationRef(source=self.source, id=self.id, wheels=self.wheels)
 
 
+class OnlineStep(StrictModel):
+    """One round wheel's update of the online calibration."""
+
+    passage_id: str = Field(max_length=200, description="the wheel's passage")
+    timestamp: float = Field(allow_inf_nan=False, description="the passage's timestamp, UNIX s")
+    requested: list[float] = Field(
+        max_length=5, description="the change of each ln(value) the wheel asked for"
+    )
+    applied: list[float] = Field(
+        max_length=5, description="the change made, within the per-wheel step and the range"
+    )
+    factors: list[float] = Field(
+        max_length=5, description="each value over the site file's after this wheel"
+    )
+    residual_ratio: float = Field(
+        ge=0, allow_inf_nan=False, description="the wheel's residual rms / noise before it"
+    )
+
+
+class OnlineCalibrationState(StrictModel):
+    """The twin's online calibration as kept in its state directory
+    (``<state>/<site_id>.calibration.json``): where it stands and its history."""
+
+    site_id: str = Field(max_length=200, description="the site")
+    start_id: str = Field(
+        pattern=CALIBRATION_ID_PATTERN,
+        description="fingerprint of the site file's foundation the factors apply to; "
+        "another one starts afresh",
+    )
+    names: list[CalibratedName] = Field(max_length=5, description="the calibrated values")
+    start: list[float] = Field(max_length=5, description="the site file's values")
+    z: list[float] = Field(max_length=5, description="ln(value / start) now")
+    information: list[list[float]] = Field(
+        max_length=5, description="the information matrix in ln(value) (prior and wheels)"
+    )
+    wheels: int = Field(ge=0, description="round wheels that updated it")
+    history: list[OnlineStep] = Field(
+        default_factory=list,
+        max_length=HISTORY,
+        description=f"the last {HISTORY} updates, oldest first",
+    )
+
+
 __all__ = [
     "CALIBRATION_ID_PATTERN",
+    "HISTORY",
     "CalibratedName",
     "CalibratedParameter",
     "CalibrationRef",
     "CalibrationSource",
     "Identifiable",
+    "OnlineCalibrationState",
+    "OnlineStep",
     "SiteCalibration",
 ]

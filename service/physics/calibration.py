@@ -42,6 +42,8 @@ __all__ = [
     "check_site",
     "check_wheel",
     "estimate",
+    "foundation_with",
+    "passage_of",
     "report",
     "table",
 ]
@@ -90,7 +92,8 @@ def check_wheel(site: SiteConfig, passage: WheelPassage, measured: MeasuredPassa
     return None
 
 
-def _passage(site: SiteConfig, name: str, p: WheelPassage, m: MeasuredPassage) -> Passage:
+def passage_of(site: SiteConfig, name: str, p: WheelPassage, m: MeasuredPassage) -> Passage:
+    """A round wheel and its channels as ``sim_core.calibration``'s ``Passage``."""
     contact, _ = physics_inputs.contact_model(
         site.contact, site.material, radius=p.radius, load=p.load, mass=p.mass
     )
@@ -115,14 +118,14 @@ def estimate(
     if not wheels:
         raise CalibrationInputError("no wheels to calibrate from")
     chain = SensorModel(site.diagnosis.sensor_lowpass_hz, site.diagnosis.sensor_lowpass_order)
-    passages = [_passage(site, n, p, m) for n, p, m in wheels]
+    passages = [passage_of(site, n, p, m) for n, p, m in wheels]
     sim_site = Site(physics_inputs.cribs(site.detector), chain)
     if progress is None:
         return calibrate(track, passages, sim_site)
     return calibrate(track, passages, sim_site, progress=progress)
 
 
-def _foundation(
+def foundation_with(
     f: DiscreteFoundation | SlabFoundation, values: Sequence[float]
 ) -> DiscreteFoundation | SlabFoundation:
     pad = TrackSupport(stiffness=values[0], damping=values[1])
@@ -143,7 +146,7 @@ def calibrated_site(
     """``site`` with the estimates in its foundation and the ``[calibration]`` table."""
     f = site.foundation
     assert isinstance(f, (DiscreteFoundation, SlabFoundation))
-    new = _foundation(f, est.estimate)
+    new = foundation_with(f, est.estimate)
     params = []
     for i, name in enumerate(est.names):
         lo, hi = est.interval(i)

@@ -14,5 +14,7 @@ each, no I/O:
 - ``estimator``: Gauss–Newton on the weighted residuals with a prior on the log-factors, the
   covariance from the Fisher information and a jackknife over the wheels;
 - ``identifiability``: which parameters and which combinations the data cannot tell apart
-  (the Fisher matrix's eigenvectors against the prior).
+  (the Fisher matrix's eigenvectors against the prior);
+- ``recursive``: the calibration learned wheel by wheel (the twin's), its step per wheel and
+  its range limited.
 """
