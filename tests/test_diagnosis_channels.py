@@ -115,3 +115,27 @@ def test_the_line_speed_forecast_covers_both_peaks(flat: Diagnosis) -> None:
     clo, chi = flat.peak_channel_at_line_speed_low, flat.peak_channel_at_line_speed_high
     assert clo is not None and chi is not None and clo <= chi
     assert not math.isnan(chi)
+
+
+def test_a_diagnoser_swaps_in_a_calibrated_site() -> None:
+    """``Diagnoser.recalibrated``: the same site with calibrated track values; the new
+    diagnoser's diagnoses name that calibration and use its foundation, the old one's are
+    unchanged; another site is refused."""
+    nominal = Diagnoser(load_site(SITE))
+    calibrated_site = load_site(DATA / "S01.calibrated.site.toml")
+    assert calibrated_site.calibration is not None
+    swapped = nominal.recalibrated(calibrated_site)
+    assert swapped is not nominal and swapped.site is calibrated_site
+    assert nominal.calibration.source == "nominal"
+    assert swapped.calibration.source == "offline" and swapped.calibration.wheels == 12
+    assert swapped.calibration.id != nominal.calibration.id
+    assert swapped.crib_site is not None and nominal.crib_site is not None
+    assert swapped.crib_site.track != nominal.crib_site.track
+    other = calibrated_site.model_copy(update={"site_id": "s99"})
+    with pytest.raises(ValueError, match="s99"):
+        nominal.recalibrated(other)
+    # a round wheel diagnosed on the calibrated site names the calibration it used
+    passage = WheelPassage.model_validate_json((DATA / "S01_P18.passage.json").read_text())
+    measured = read_measured(DATA / "S01_P18.csv", "S01_P18", sample_rate=1e4)
+    diag, _ = swapped.diagnose(passage, measured)
+    assert diag.calibration == swapped.calibration and diag.flat is None
