@@ -24,7 +24,7 @@ def test_a_kept_reduction_is_the_computed_one(
 ) -> None:
     monkeypatch.setenv("RAILTWIN_TRACK_CACHE", str(tmp_path))
     a = _fresh(1.2)
-    assert len(list(tmp_path.glob("*.npz"))) == 1
+    assert len(list(tmp_path.glob(f"*{store.SUFFIX}"))) == 1
     b = _fresh(1.2)
     assert a is not b
     for f in ("lam", "rows", "resid", "bubble", "crib_rows"):
@@ -35,9 +35,10 @@ def test_a_kept_reduction_is_the_computed_one(
 def test_a_broken_entry_is_recomputed(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("RAILTWIN_TRACK_CACHE", str(tmp_path))
     a = _fresh(1.8)
-    (entry,) = tmp_path.glob("*.npz")
+    (entry,) = tmp_path.glob(f"*{store.SUFFIX}")
     good = entry.read_bytes()
-    for broken in (b"not a zip", b"", good[: len(good) // 2]):
+    damaged = good[:-9] + bytes([good[-9] ^ 1]) + good[-8:]
+    for broken in (b"not a zip", b"", good[: len(good) // 2], damaged):
         entry.write_bytes(broken)
         b = _fresh(1.8)
         assert np.array_equal(a.lam, b.lam)
@@ -49,4 +50,4 @@ def test_off_writes_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> 
     monkeypatch.setenv("RAILTWIN_TRACK_CACHE", "off")
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
     _fresh(2.4)
-    assert not list(tmp_path.rglob("*.npz"))
+    assert not list(tmp_path.rglob(f"*{store.SUFFIX}"))
