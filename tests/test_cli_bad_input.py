@@ -26,6 +26,7 @@ from tests.test_cli import run_main
 
 TRAIN = ROOT / "recordings/samples/train_160kmh.json"
 SITE = EXAMPLES / "site_compliant.toml"
+DATA = ROOT / "tests" / "data"
 MALFORMED = "{bad"
 
 
@@ -199,8 +200,14 @@ CASES: list[tuple[str, list[str], int, tuple[str, ...]]] = [
         ("invalid passage", "speed"),
     ),
     (
-        "synthesize-discrete-site",
-        ["synthesize", "--site", str(EXAMPLES / "site.toml"), *SYNTHESIZE[3:], *OUT],
+        "synthesize-discrete-site-without-detector",
+        [
+            "synthesize",
+            "--site",
+            str(DATA / "site_discrete_no_detector.toml"),
+            *SYNTHESIZE[3:],
+            *OUT,
+        ],
         2,
         ("invalid site", "foundation"),
     ),
