@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 from typing import Annotated, Literal
 
+import numpy as np
 from pydantic import Field, field_validator, model_validator
 
 from schemas._base import (
@@ -108,12 +109,13 @@ class SampledOutline(StrictModel):
             )
         if len(self.theta) < 3:
             raise field_error("theta", f"needs at least 3 samples, got {len(self.theta)}")
-        for i in range(1, len(self.theta)):
-            if not self.theta[i] > self.theta[i - 1]:
-                raise field_error(
-                    f"theta[{i}]",
-                    f"must be strictly increasing: {self.theta[i]!r} follows {self.theta[i - 1]!r}",
-                )
+        bad = np.flatnonzero(~(np.diff(np.asarray(self.theta, dtype=np.float64)) > 0.0))
+        if bad.size:
+            i = int(bad[0]) + 1
+            raise field_error(
+                f"theta[{i}]",
+                f"must be strictly increasing: {self.theta[i]!r} follows {self.theta[i - 1]!r}",
+            )
         span = self.theta[-1] - self.theta[0]
         if span >= TWO_PI:
             raise field_error(
@@ -227,12 +229,13 @@ class SampledRail(StrictModel):
             )
         if len(self.x) < 2:
             raise field_error("x", f"needs at least 2 samples, got {len(self.x)}")
-        for i in range(1, len(self.x)):
-            if not self.x[i] > self.x[i - 1]:
-                raise field_error(
-                    f"x[{i}]",
-                    f"must be strictly increasing: {self.x[i]!r} follows {self.x[i - 1]!r}",
-                )
+        bad = np.flatnonzero(~(np.diff(np.asarray(self.x, dtype=np.float64)) > 0.0))
+        if bad.size:
+            i = int(bad[0]) + 1
+            raise field_error(
+                f"x[{i}]",
+                f"must be strictly increasing: {self.x[i]!r} follows {self.x[i - 1]!r}",
+            )
         return self
 
 
