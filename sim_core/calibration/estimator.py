@@ -13,8 +13,9 @@ log-factor moves by more than the radius a step; it grows where the linear model
 the step's gain well and shrinks where it did not: the channels are far from linear in the
 pad's stiffness over ±30 %, and one long Gauss–Newton step from the nominal trades a
 stiffness for a damping). Each step is checked on the full model and taken only if it lowers
-the cost; after it, the Jacobians of the informative wheels (``INFORMATIVE``: the fast ones)
-are computed anew, the others updated by Broyden's rank-one formula.
+the cost; after it, every wheel's Jacobian is updated by Broyden's rank-one formula, and where the
+linear model predicted the step's gain poorly (less than 3/4 of it came) the informative
+wheels' (``INFORMATIVE``: the fast ones) are computed anew.
 
 Uncertainty: the posterior covariance (F + I/prior_sd²)⁻¹ with F = ΣJ_kᵀJ_k the Fisher
 information, scaled by the reduced χ² when it exceeds 1; and a jackknife over the wheels
@@ -22,6 +23,11 @@ information, scaled by the reduced χ² when it exceeds 1; and a jackknife over 
 does not: the rail's roughness, unknown and the same for every wheel, drives a dynamic load
 that differs from wheel to wheel with its speed. Each parameter's standard deviation is the
 larger of the two; its interval is the estimate × exp(±1.96 sd).
+
+A parameter the wheels do not determine (``identifiability``: verdict ``no`` on that standard
+deviation) is not left where the data's unmodelled part (the rail's roughness, above all)
+pushed it: it is put back to its nominal and held there (prior precision ``FROZEN``), the
+others are fitted again, and its interval is the prior's.
 """
 
 from __future__ import annotations
@@ -65,6 +71,9 @@ share of the Fisher information (the fast ones); the others' are updated by Broy
 SIGMA_TOL = 0.02
 """The noise is estimated again from the calibrated residuals; if it moved by more than this
 (relative), the search is run once more with the new weights."""
+
+FROZEN = 1.0e12
+"""The prior precision that holds a parameter the wheels do not determine at its nominal."""
 
 TOL = 0.005
 """Stop when no log-factor moves by more than this."""
@@ -135,6 +144,35 @@ def _judged(ident: Identifiability, sd: NDArray[np.float64], prior_sd: float) ->
     return dataclasses.replace(ident, identifiable=judge(final, prior_sd), posterior_sd=final)
 
 
+def _uncertainty(
+    jac: Sequence[NDArray[np.float64]],
+    base: Sequence[NDArray[np.float64]],
+    z: NDArray[np.float64],
+    precision: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], float]:
+    """(Fisher sd, jackknife sd, posterior covariance, reduced χ²) at z (module docstring)."""
+    n = z.size
+    a = _sum_jtj(jac) + np.diag(precision)
+    n_data = sum(r.size for r in base)
+    chi2 = sum(float(r @ r) for r in base) / max(1, n_data - n)
+    cov = np.asarray(np.linalg.inv(a) * max(1.0, chi2), dtype=np.float64)
+    fisher_sd = np.sqrt(np.diag(cov))
+    # jackknife over the wheels, linearised at the estimate
+    g_all = [j.T @ r for j, r in zip(jac, base, strict=True)]
+    g_sum = np.sum(g_all, axis=0)
+    k = len(g_all)
+    if k < 3:
+        return fisher_sd, np.zeros(n), cov, chi2
+    loo = np.array(
+        [
+            z + np.linalg.solve(a - j.T @ j, g_sum - gk - precision * z)
+            for j, gk in zip(jac, g_all, strict=True)
+        ]
+    )
+    jack_sd = np.sqrt((k - 1) / k * np.sum((loo - loo.mean(axis=0)) ** 2, axis=0))
+    return fisher_sd, jack_sd, cov, chi2
+
+
 def _rms(r: NDArray[np.float64]) -> float:
     return float(np.sqrt(np.mean(r**2)))
 
@@ -148,23 +186,23 @@ def _descend(
     site: Site,
     sigma: Sequence[float],
     informative: list[int],
-    prior_sd: float,
+    precision: NDArray[np.float64],
     max_steps: int,
     progress: Progress,
 ) -> tuple[NDArray[np.float64], list[NDArray[np.float64]], int]:
     """Trust-region Gauss–Newton steps from z (module docstring); ``jac`` is updated in place.
     Returns the new z, its residuals and the steps taken."""
-    prior = np.eye(z.size) / prior_sd**2
+    prior = np.diag(precision)
 
     def cost(rs: Sequence[NDArray[np.float64]], zz: NDArray[np.float64]) -> float:
-        return float(sum(float(r @ r) for r in rs) + zz @ zz / prior_sd**2)
+        return float(sum(float(r @ r) for r in rs) + zz @ (precision * zz))
 
     current = cost(base, z)
     steps = 0
     radius = TRUST
     for _ in range(max_steps):
         a = _sum_jtj(jac) + prior
-        g = sum(j.T @ r for j, r in zip(jac, base, strict=True)) - z / prior_sd**2
+        g = sum(j.T @ r for j, r in zip(jac, base, strict=True)) - precision * z
         delta = np.linalg.solve(a, g)
         big = float(np.max(np.abs(delta)))
         if big > radius:
@@ -192,6 +230,8 @@ def _descend(
         z, base, current = trial_z, trial, c
         if moved < TOL:
             break
+        if ratio > 0.75:
+            continue  # the linear model held: Broyden's update is enough
         sub = [passages[k] for k in informative]
         fresh = jacobian(
             nominal,
@@ -230,7 +270,7 @@ def calibrate(
     base = [r / s for r, s in zip(raw, sigma, strict=True)]
     raw_nominal = list(base)
     jac = jacobian(nominal, z, passages, site, sigma, base, progress)
-    prior = np.eye(n) / prior_sd**2
+    precision = np.full(n, 1.0 / prior_sd**2)
     informative = _informative(jac)
     steps = 0
     for again_pass in range(2):
@@ -243,7 +283,7 @@ def calibrate(
             site,
             sigma,
             informative,
-            prior_sd,
+            precision,
             max_steps if again_pass == 0 else max(1, max_steps // 2),
             progress,
         )
@@ -261,27 +301,41 @@ def calibrate(
             break
     rms_nominal = tuple(_rms(r) for r in raw_nominal)
     fisher = _sum_jtj(jac)
-    a = fisher + prior
-
-    n_data = sum(r.size for r in base)
-    chi2 = sum(float(r @ r) for r in base) / max(1, n_data - n)
-    cov = np.asarray(np.linalg.inv(a) * max(1.0, chi2), dtype=np.float64)
-    fisher_sd = np.sqrt(np.diag(cov))
-    # jackknife over the wheels, linearised at the estimate
-    g_all = [j.T @ r for j, r in zip(jac, base, strict=True)]
-    g_sum = sum(g_all)
-    k = len(passages)
-    if k >= 3:
-        loo = []
-        for j, gk in zip(jac, g_all, strict=True):
-            ak = a - j.T @ j
-            loo.append(z + np.linalg.solve(ak, g_sum - gk - z / prior_sd**2))
-        m = np.array(loo)
-        jk = (k - 1) / k * np.sum((m - m.mean(axis=0)) ** 2, axis=0)
-        jack_sd = np.sqrt(jk)
-    else:
-        jack_sd = np.zeros(n)
+    fisher_sd, jack_sd, cov, chi2 = _uncertainty(jac, base, z, precision)
     sd = np.maximum(fisher_sd, jack_sd)
+    ident = _judged(analyse(fisher, prior_sd, keys), sd, prior_sd)
+    frozen = np.array([v == "no" for v in ident.identifiable])
+    if frozen.any() and not frozen.all():
+        # what the wheels do not determine stays at the nominal; the rest is fitted again
+        z = np.where(frozen, 0.0, z)
+        base = residuals(nominal, z, passages, site, sigma, progress, "refit")
+        precision = np.where(frozen, FROZEN, precision)
+        z, base, more = _descend(
+            nominal,
+            z,
+            base,
+            jac,
+            passages,
+            site,
+            sigma,
+            informative,
+            precision,
+            max(1, max_steps // 2),
+            progress,
+        )
+        steps += more
+        fisher = _sum_jtj(jac)
+        fisher_sd, jack_sd, cov, chi2 = _uncertainty(jac, base, z, precision)
+        fisher_sd = np.where(frozen, prior_sd, fisher_sd)
+        jack_sd = np.where(frozen, 0.0, jack_sd)
+        sd = np.maximum(fisher_sd, jack_sd)
+        again_ident = _judged(analyse(fisher, prior_sd, keys), sd, prior_sd)
+        ident = dataclasses.replace(
+            again_ident,
+            identifiable=tuple(
+                "no" if f else v for f, v in zip(frozen, again_ident.identifiable, strict=True)
+            ),
+        )
     return Estimate(
         names=keys,
         nominal=values(nominal),
@@ -291,7 +345,7 @@ def calibrate(
         jackknife_sd=tuple(float(v) for v in jack_sd),
         covariance=cov,
         fisher=fisher,
-        identifiability=_judged(analyse(fisher, prior_sd, keys), sd, prior_sd),
+        identifiability=ident,
         wheels=tuple(p.name for p in passages),
         sigma=tuple(sigma),
         rms_nominal=rms_nominal,
