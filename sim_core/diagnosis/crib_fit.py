@@ -1,32 +1,35 @@
 """The fit from crib channels: which flat makes the twin's channels look like the measured ones.
 
 The twin simulates the wheel on the site's track with the site's cribs and chain
-(``crib_forward``); a candidate is a flat's kind, length and phase. Each forward run costs
-tens to hundreds of ms (13 runs a flat wheel), so the search is short and driven by what
-the record shows:
+(``crib_forward``); a candidate is a flat's kind, length and phase. A forward run costs
+0.05-0.35 s (about 20 a flat wheel), so the search is short and driven by the record:
 
 1. **Screen** (``crib_screen``, no simulation): a record within the round wheel's allowance
    of the round template is dismissed.
-2. **Where the flat hits.** The record's excess over the round template (summed over the
-   cribs) peaks where an impact falls inside a crib. Its largest peak fixes the impact
-   time t* in the record; the other turns follow every 2πR/V. A candidate's phase puts its
-   own simulated peak on t*: the first run of each kind guesses the impact's lag behind the
-   flat's centre (l/2 of travel plus the chain's delay), each run measures it again (step
-   3), and the next run uses it. All turns are compared at once (the phase is one unknown).
-3. **Kind and length.** Each kind is run at the lengths of ``LENGTH_GRID``. A run's
-   excess is aligned with the measured one (the cross-correlation's peak over the
-   windows); the cost, the sum of squared channel differences over windows around the
-   measured impacts (every crib), is taken on the run shifted by that delay, so that the
-   cost does not jump with a phase that is a fraction of a millisecond off, and the next
-   run of the kind starts from the aligned phase.
-4. **Refinement and interval.** The kind of the cheapest run wins; a parabola through its
-   cost at the best length and its grid neighbours (in log length) gives the length, one
-   more run there the final phase, and the length interval is where the parabola stays
-   within the χ² bound J <= J_min·(1 + 3.84/(``DOF_PER_WINDOW``·windows)) (the residual is
-   model error correlated over a window, as in ``estimate``).
+2. **Where the flat's event begins** (``anchor``): the record's excess over the round
+   template (summed over the cribs) at its largest, traced back to where it first reached
+   half of that (the unloading dip or the first impact: a long flat's largest peak may be a
+   later bounce). Windows around it and every 2πR/V from it (one per turn in the record)
+   are compared, every crib; all turns at once (the phase is one unknown).
+3. **Kind and length.** Each kind is run at the lengths of ``LENGTH_GRID``. A candidate's
+   phase puts its event on the measured one: the impact trails the flat's centre by l/2 of
+   travel plus an offset, which each run measures (the cross-correlation of its excess with
+   the measured one over the windows) and which the next run of the kind interpolates
+   linearly in the length (``_Search.offset``). The cost, the sum of squared channel
+   differences over the windows, is taken on the run shifted by the measured delay, so
+   that it does not jump with a phase a fraction of a millisecond off.
+4. **Refinement and interval.** Successive parabolic steps in log length from each kind's
+   best grid run (``REFINE_RUNS``; the other kind only if its best is within
+   ``KIND_REFINE_RATIO`` of the best); the cheaper kind wins. The length interval is where
+   the cost's parabola through the best run and its neighbours stays within the χ² bound
+   J <= J_min·(1 + 3.84/(``DOF_PER_WINDOW``·windows)) (the residual is model error,
+   correlated over a window). A flat that explains the windows no better than the round
+   template is not reported.
 
-A worn flat's depth is taken as l²/16R (depth factor 1); the length absorbs a deeper or
-shallower flat. docs/diagnosis.md has the method and the validation on independent data.
+A worn flat's depth is taken as l²/16R (depth factor 1): fitting it as well (three more runs)
+was measured on the handed-over detector sites and helped on calibrated site files as much as
+it hurt on nominal ones. docs/service.md ("Wheel-flat diagnosis") has the method, the README
+the validation on an independent solver's records.
 """
 
 from __future__ import annotations
@@ -83,9 +86,6 @@ ANCHOR_LEVEL = 0.5
 MAX_SHIFT = 80
 """Samples either way over which a candidate's excess is aligned with the measured one."""
 
-PEAK_SEARCH = 0.25
-"""Fraction of a turn around t* searched for a candidate's own peak."""
-
 
 def flat_of(
     radius: float, kind: FlatKind, length: float, phase: float, depth_factor: float = 1.0
@@ -99,13 +99,12 @@ def flat_of(
 
 @dataclass(frozen=True)
 class Trial:
-    """One forward run of the search: the candidate, its cost and its excess peak."""
+    """One forward run of the search: the candidate (phase as aligned) and its cost."""
 
     kind: FlatKind
     length: float
     phase: float
     cost: float
-    peak_excess: float
     peak_force: float
     run: CribRun = field(repr=False)
 
@@ -185,12 +184,6 @@ class _Search:
     def excess(self, chans: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.asarray(np.sum(chans - self.template, axis=0), dtype=np.float64)
 
-    def excess_peak(self, chans: NDArray[np.float64]) -> float:
-        """The largest summed excess over the template near t*."""
-        s = self.excess(chans)
-        near = np.abs(self.t - self.t_star) <= PEAK_SEARCH * self.period
-        return float(np.max(s[near])) if np.any(near) else 0.0
-
     def delay(self, chans: NDArray[np.float64]) -> float:
         """s by which the simulated excess lags the measured one over the windows (the
         cross-correlation's peak, to a fraction of a sample)."""
@@ -240,7 +233,6 @@ class _Search:
             got = self.site.run(self.wheel, V, flat_of(R, kind, length, phase), self.t)
         except IntegrationError:
             return None
-        peak = self.excess_peak(got.channels)
         shift = self.delay(got.channels)
         self.lags.setdefault(kind, []).append((length, offset + V * shift))
         # the run as it would be at the aligned phase: shifted in time (a fraction of a
@@ -248,9 +240,7 @@ class _Search:
         aligned = np.empty_like(got.channels)
         for i in range(aligned.shape[0]):
             aligned[i] = np.interp(self.t + shift, self.t, got.channels[i])
-        trial = Trial(
-            kind, length, phase + V * shift / R, self.cost(aligned), peak, got.peak_force, got
-        )
+        trial = Trial(kind, length, phase + V * shift / R, self.cost(aligned), got.peak_force, got)
         self.trials.append(trial)
         return trial
 
@@ -408,6 +398,23 @@ def fit_channels(
     final = refined[kind]
     low, high = _interval(search, kind, final)
     low, high = min(low, final.length), max(high, final.length)
+    if final.cost >= cost_round:  # no flat explains the windows better than a round wheel
+        return CribEstimate(
+            None,
+            None,
+            low,
+            high,
+            cost_round,
+            final.cost,
+            n,
+            search.windows,
+            sc.noise,
+            sc,
+            len(search.trials),
+            template,
+            wheel.load,
+            speed=speed,
+        )
     return CribEstimate(
         flat_of(wheel.radius, kind, final.length, final.phase),
         kind,
