@@ -19,7 +19,7 @@ The twin simulates the wheel on the site's track with the site's cribs and chain
    differences over the windows, is taken on the run shifted by the measured delay, so
    that it does not jump with a phase a fraction of a millisecond off.
 4. **Refinement and interval.** Successive parabolic steps in log length from each kind's
-   best grid run (``REFINE_RUNS``; the other kind only if its best is within
+   best grid run (``REFINE_RUNS`` each; the other kind only if its best is within
    ``KIND_REFINE_RATIO`` of the best); the cheaper kind wins. The length interval is where
    the cost's parabola through the best run and its neighbours stays within the χ² bound
    J <= J_min·(1 + 3.84/(``DOF_PER_WINDOW``·windows)) (the residual is model error,
@@ -60,10 +60,13 @@ MIN_STEP = 0.01
 """Smallest step in log length the refinement takes (1 %: below what the data resolve)."""
 
 REFINE_RUNS = 3
-"""Runs refining the best kind's length (one fewer for the other kind, if refined)."""
+"""Runs refining each kind's length."""
 
-KIND_REFINE_RATIO = 2.0
-"""The other kind is refined too when its best grid cost is within this factor of the best."""
+KIND_REFINE_RATIO = 10.0
+"""The other kind is refined too when its best grid cost is within this factor of the best:
+a wide factor, since a fresh flat's cost is sharp in the length and its grid points may all
+miss its minimum (a 30 mm fresh flat at 40 km/h cost 4x a worn 42 mm one at the grid's 25 and
+40 mm, and 0.5x at 30 mm)."""
 
 LENGTH_RANGE = (0.006, 0.2)
 """m: the lengths the search may try."""
@@ -392,7 +395,7 @@ def fit_channels(
     refined: dict[FlatKind, Trial] = {}
     for k, tr in best_of.items():
         if tr.cost <= KIND_REFINE_RATIO * lowest:
-            runs = REFINE_RUNS if tr.cost == lowest else REFINE_RUNS - 1
+            runs = REFINE_RUNS
             refined[k] = _refine(search, k, runs)
     kind = min(refined, key=lambda k: refined[k].cost)
     final = refined[kind]
