@@ -55,8 +55,17 @@ from sim_core.rail import RailProfile
 
 __all__ = ["poly_points", "round_nodes", "tabulate_round_polyline"]
 
+_borrowing = numba.njit(cache=True, _nrt=False)  # type: ignore[call-overload]  # _nrt: not in the stubs
+"""The decorator of the functions that allocate nothing and return no array (the per-point
+helpers :func:`_piece`, :func:`_eff`, :func:`_poly_solve`, :func:`_seg_breaks`,
+:func:`_overtake`, and the envelope's two passes :func:`_stack` and :func:`_emit`): compiled
+without numba's runtime, they borrow their arrays instead of taking a reference count on each
+(an atomic increment and decrement per array, per call and per inlined helper: the envelope
+of a 6 m rail sampled every 0.5 mm spent ~80 % of its 14 ms in ``NRT_incref``/``NRT_decref``,
+measured with ``perf``; without them 1.6 ms, the same nodes to the last bit)."""
 
-@numba.njit(cache=True)
+
+@_borrowing
 def _piece(
     pid: int, x: float, R: float, vx: NDArray[np.float64], vy: NDArray[np.float64]
 ) -> tuple[float, float, float]:
@@ -76,7 +85,7 @@ def _piece(
     return R * s * s / (c + 1.0) + vy[k] + s * (x - vx[k]), s, x + s * R / c
 
 
-@numba.njit(cache=True)
+@_borrowing
 def _poly_solve(
     x: float,
     R: float,
@@ -141,7 +150,7 @@ def _poly_solve(
     return best, bp
 
 
-@numba.njit(cache=True)
+@_borrowing
 def _eff(pid: int, x: float, R: float, vx: NDArray[np.float64], vy: NDArray[np.float64]) -> int:
     """The piece a closed segment really contributes at x: itself, or the end vertex nearer its tangent point."""
     if pid & 1 == 0:
@@ -288,7 +297,7 @@ def _seg_value_l(
     return so[j] + vy[j] + ss[j] * (x - vx[j]), ss[j], p, 2 * j + 1
 
 
-@numba.njit(cache=True)
+@_borrowing
 def _seg_breaks(
     j: int, R: float, vx: NDArray[np.float64], vy: NDArray[np.float64]
 ) -> tuple[float, float]:
@@ -302,7 +311,7 @@ def _seg_breaks(
     return vx[j] - off, vx[j + 1] - off
 
 
-@numba.njit(cache=True)
+@_borrowing
 def _overtake(
     t: int,
     j: int,
@@ -411,6 +420,30 @@ def _envelope_nodes(
     st = np.empty(cap, np.int64)  # segments on the stack
     sx = np.empty(cap)  # where each starts to win
     sk = np.empty(cap)  # 1.0 if its start is a kink
+    ns = _stack(x0, x1, R, vx, vy, ss, so, sto, jlo, jhi, st, sx, sk)
+    nodes = np.empty((nint + 1 + 3 * ns + 1, NCOL))  # grid, and per segment <= 3
+    nn = _emit(x0, x1, nint, R, vx, vy, ss, so, sto, st, sx, sk, ns, nodes)
+    return nodes[:nn]
+
+
+@_borrowing
+def _stack(
+    x0: float,
+    x1: float,
+    R: float,
+    vx: NDArray[np.float64],
+    vy: NDArray[np.float64],
+    ss: NDArray[np.float64],
+    so: NDArray[np.float64],
+    sto: NDArray[np.float64],
+    jlo: int,
+    jhi: int,
+    st: NDArray[np.int64],
+    sx: NDArray[np.float64],
+    sk: NDArray[np.float64],
+) -> int:
+    """:func:`_envelope_nodes`' pass over the segments: the stack (``st`` its segments, ``sx``
+    where each starts to win, ``sk`` 1.0 where that start is a kink) and its size."""
     ns = 0
     for j in range(jlo, jhi + 1):
         if not vx[j + 1] > vx[j]:
@@ -457,8 +490,29 @@ def _envelope_nodes(
         sx[ns] = start if ns > 0 else x0
         sk[ns] = kink if ns > 0 else 0.0
         ns += 1
+    return ns
+
+
+@_borrowing
+def _emit(
+    x0: float,
+    x1: float,
+    nint: int,
+    R: float,
+    vx: NDArray[np.float64],
+    vy: NDArray[np.float64],
+    ss: NDArray[np.float64],
+    so: NDArray[np.float64],
+    sto: NDArray[np.float64],
+    st: NDArray[np.int64],
+    sx: NDArray[np.float64],
+    sk: NDArray[np.float64],
+    ns: int,
+    nodes: NDArray[np.float64],
+) -> int:
+    """:func:`_envelope_nodes`' nodes from the stack, written into ``nodes`` (room known):
+    their number."""
     # the nodes: grid points, the starts of the stack's segments, and their forms' breaks
-    nodes = np.empty((nint + 1 + 3 * ns + 1, NCOL))  # grid, and per segment <= 3
     nn = 0
     h = (x1 - x0) / nint
     i = 0
@@ -504,4 +558,4 @@ def _envelope_nodes(
                 _row(nodes, nn, xg, v, s, s, xd, 0.0)
                 nn += 1
             i += 1
-    return nodes[:nn]
+    return nn
