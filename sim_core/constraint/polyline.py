@@ -78,7 +78,7 @@ from sim_core.constraint.nodes import (
     table_from_nodes,
 )
 from sim_core.constraint.rail_polyline import RailPolyline, rail_polyline
-from sim_core.constraint.round_polyline import poly_points, round_nodes
+from sim_core.constraint.round_polyline import _borrowing, poly_points, round_nodes
 from sim_core.constraint.table import ConstraintTable
 from sim_core.constraint.wheel_pieces import (
     PIECE_ARC,
@@ -103,6 +103,9 @@ __all__ = [
     "tabulate_polyline",
 ]
 
+# the sweep's helpers that take the case's arrays (``PolylineCase``, six of them) are compiled
+# ``_borrowing`` (round_polyline): no reference count on each array per call; they allocate
+# nothing and return no array
 # piece table columns (as in wheel_pieces)
 _T0, _T1, _KIND, _C0, _C1, _CEN, _CONC, _DRMAX = range(8)
 
@@ -241,7 +244,7 @@ def _seg_from(vx: NDArray[np.float64], p: float, j: int) -> int:
     return j
 
 
-@numba.njit(cache=True)
+@_borrowing
 def _psi_at(
     P: NDArray[np.float64], k: int, sh: float, R: float, x: float, phi: float, xv: float
 ) -> float:
@@ -269,7 +272,7 @@ def _psi_at(
     return psi
 
 
-@numba.njit(cache=True)
+@_borrowing
 def _vertex_point(
     P: NDArray[np.float64],
     k: int,
@@ -327,7 +330,7 @@ def _predict(
     return psi + d - 0.5 * a2 / a1 * d * d
 
 
-@numba.njit(cache=True)
+@_borrowing
 def _g_line(
     P: NDArray[np.float64],
     k: int,
@@ -400,7 +403,7 @@ def _hermite_root(lo: float, hi: float, f0: float, f1: float, d0: float, d1: flo
     return lo + t * w
 
 
-@numba.njit(cache=True)
+@_borrowing
 def _stationary(
     P: NDArray[np.float64],
     k: int,
@@ -516,7 +519,7 @@ def _curvature(
     return r2 * sp + 2.0 * r1 * cp - rho * sp, r2 * cp - 2.0 * r1 * sp - rho * cp
 
 
-@numba.njit(cache=True)
+@_borrowing
 def _cell(
     pl: PolylineCase,
     g: int,
@@ -553,7 +556,7 @@ def _wheel_point(
     return psi, dr, r1, sp, cp, sp * sp / (1.0 + cp), r2
 
 
-@numba.njit(cache=True)
+@_borrowing
 def _cell_in(
     pl: PolylineCase,
     g: int,
@@ -653,7 +656,7 @@ _cell_scan = numba.njit(inline="always")(_cell_in.py_func)
 passes the rail's arrays with their reference counts, ~1/4 of a cell's cost."""
 
 
-@numba.njit(cache=True)
+@_borrowing
 def _cells_of(t: int, g: int, r: int, out: NDArray[np.int64], m: int) -> int:
     """Append the cells (g, j) of feature (t, g, r) to ``out`` from row m; returns the new count."""
     if t == FT_T:
@@ -673,7 +676,7 @@ def _cells_of(t: int, g: int, r: int, out: NDArray[np.int64], m: int) -> int:
     return m + 2
 
 
-@numba.njit(cache=True)
+@_borrowing
 def _chord_max(
     pl: PolylineCase,
     g: int,
@@ -759,7 +762,7 @@ def _cos_below(y: float) -> float:
     return t - y2 * y2 * y2 * y2 * y2 * y2 / 479001600.0 - 1e-15
 
 
-@numba.njit(cache=True)
+@_borrowing
 def _global(
     pl: PolylineCase,
     ymax: float,
@@ -892,7 +895,7 @@ def _global(
     return best, bt, bg, br, bs, bx, g0
 
 
-@numba.njit(cache=True)
+@_borrowing
 def _restricted(
     pl: PolylineCase,
     phase: float,
@@ -920,7 +923,7 @@ def _restricted(
     return best, bt, bg, br, bs, bx
 
 
-@numba.njit(cache=True)
+@_borrowing
 def _feature_eval(
     pl: PolylineCase,
     phase: float,
@@ -963,7 +966,7 @@ def _feature_eval(
     return G, _slope_tangent(R, sp, cp, r1, sl[r]), xd, psi, dpsi
 
 
-@numba.njit(cache=True)
+@_borrowing
 def _handover(tA: int, gA: int, rA: int, tB: int, gB: int, rB: int) -> bool:
     """True if one feature is a piece's tangent and the other an end of its cell (a C¹ change)."""
     if tA != FT_T:
@@ -977,7 +980,7 @@ def _handover(tA: int, gA: int, rA: int, tB: int, gB: int, rB: int) -> bool:
     return False
 
 
-@numba.njit(cache=True)
+@_borrowing
 def _handover_gap(
     pl: PolylineCase, phase: float, tA: int, gA: int, rA: int, tB: int, gB: int, rB: int, x: float
 ) -> float:
@@ -1010,7 +1013,7 @@ def _ahead(psi: float, dpsi: float, dx: float) -> float:
     return psi if math.isnan(dpsi) else psi + dpsi * dx
 
 
-@numba.njit(cache=True)
+@_borrowing
 def _change_point(
     pl: PolylineCase,
     phase: float,
