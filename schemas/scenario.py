@@ -16,10 +16,12 @@ wheel's diameter is refused with the field named:
 
 from __future__ import annotations
 
+import itertools
 import math
+import operator
+from collections.abc import Sequence
 from typing import Annotated, Literal
 
-import numpy as np
 from pydantic import Field, field_validator, model_validator
 
 from schemas._base import (
@@ -56,6 +58,20 @@ MAX_OUTLINE_POINTS = 4096
 tabulating 4 096 takes ~0.3 s, 10^5 took 22 s)."""
 
 # --- wheel outlines -------------------------------------------------------------------------
+
+
+def first_not_increasing(values: Sequence[float]) -> int | None:
+    """The first index whose value is not above the one before (NaN included), or None.
+
+    Pure Python (the schemas need nothing but pydantic), one comparison a pair in C:
+
+    >>> first_not_increasing([0.0, 1.0, 1.0, 2.0]), first_not_increasing([0.0, 0.5])
+    (2, None)
+    """
+    ok = map(operator.lt, values, itertools.islice(values, 1, None))
+    if all(ok):
+        return None
+    return next(i + 1 for i, (a, b) in enumerate(itertools.pairwise(values)) if not a < b)
 
 
 class RoundOutline(StrictModel):
@@ -109,9 +125,8 @@ class SampledOutline(StrictModel):
             )
         if len(self.theta) < 3:
             raise field_error("theta", f"needs at least 3 samples, got {len(self.theta)}")
-        bad = np.flatnonzero(~(np.diff(np.asarray(self.theta, dtype=np.float64)) > 0.0))
-        if bad.size:
-            i = int(bad[0]) + 1
+        i = first_not_increasing(self.theta)
+        if i is not None:
             raise field_error(
                 f"theta[{i}]",
                 f"must be strictly increasing: {self.theta[i]!r} follows {self.theta[i - 1]!r}",
@@ -229,9 +244,8 @@ class SampledRail(StrictModel):
             )
         if len(self.x) < 2:
             raise field_error("x", f"needs at least 2 samples, got {len(self.x)}")
-        bad = np.flatnonzero(~(np.diff(np.asarray(self.x, dtype=np.float64)) > 0.0))
-        if bad.size:
-            i = int(bad[0]) + 1
+        i = first_not_increasing(self.x)
+        if i is not None:
             raise field_error(
                 f"x[{i}]",
                 f"must be strictly increasing: {self.x[i]!r} follows {self.x[i - 1]!r}",
