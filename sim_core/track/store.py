@@ -68,13 +68,25 @@ def load(name: str, fields: tuple[str, ...] = ()) -> dict[str, np.ndarray] | Non
     if d is None:
         return None
     try:
-        data = bytearray((d / f"{name}{SUFFIX}").read_bytes())  # writable: the arrays are views
-        arrays = _parse(data)
+        data = _read(d / f"{name}{SUFFIX}")
+        arrays = _parse(data) if data is not None else None
     except Exception:  # anything a foreign or damaged file raises
         return None
     if arrays is None or any(f not in arrays for f in fields):
         return None
     return arrays
+
+
+def _read(path: Path) -> bytearray | None:
+    """The file's bytes in one writable buffer (the arrays are views on it), read in place:
+    ``bytearray(path.read_bytes())`` copied them once more into fresh pages (a 21 MB entry:
+    28 -> 3.3 ms); None if the file changed size while read."""
+    with path.open("rb") as f:
+        size = os.fstat(f.fileno()).st_size
+        data = bytearray(size)
+        if f.readinto(data) != size:
+            return None
+    return data
 
 
 def _parse(data: bytearray) -> dict[str, np.ndarray] | None:
