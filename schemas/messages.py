@@ -469,6 +469,13 @@ class Health(VersionedMessage):
     last_error: ServiceError | None = None
     mcap_path: str | None = Field(default=None, description="current MCAP log file")
     rrd_path: str | None = Field(default=None, description="this run's Rerun recording")
+    calibration: str | None = Field(
+        default=None,
+        description="the site's online calibration as the last diagnosis used it: each "
+        "track value over the site file's, its change over the last 100 calibration wheels, "
+        "and the wheels in all (one line); null until a diagnosis at a site the twin "
+        "calibrates online (1.5)",
+    )
 
 
 class RejectedInput(VersionedMessage):

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import logging
+import math
 import os
 import secrets
 import signal
@@ -33,7 +34,12 @@ from service.cli.inputs import load_site_file, zenoh_config, zenoh_message
 from service.physics.local import LocalPhysics
 from service.physics.port import PhysicsPort
 from service.physics.rail_store import RailStore, StateMismatchError, physics_fingerprint
-from service.physics.worker import PhysicsPool, StartCancelledError
+from service.physics.worker import (
+    CALIBRATION_INTERVAL,
+    OnlineSetting,
+    PhysicsPool,
+    StartCancelledError,
+)
 from service.recording.input_journal import InputJournal
 from service.recording.mcap_log import DEFAULT_MAX_BYTES, DEFAULT_MAX_SECONDS
 from service.recording.recorder_process import ProcessRecorder, RecordingPlan
@@ -169,6 +175,21 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
         "(hertz, johnson) are simulated N at a time and published in order; a "
         "hertz_plastic site always has one",
     )
+    p.add_argument(
+        "--calibration-interval",
+        type=float,
+        default=CALIBRATION_INTERVAL,
+        metavar="S",
+        help="at a site with a detector, the twin calibrates its track online from the round "
+        "wheels it dismisses, at most one wheel per S seconds (default "
+        f"{CALIBRATION_INTERVAL:g}; 0: every one), kept in the state dir as "
+        "<site_id>.calibration.json (none with --no-state)",
+    )
+    p.add_argument(
+        "--no-online-calibration",
+        action="store_true",
+        help="keep the site file's track values (no online calibration)",
+    )
     logs.add_arguments(p)
     p.add_argument(
         "--physics",
@@ -263,6 +284,10 @@ def _run(args: argparse.Namespace, stop: threading.Event, pools: list[PhysicsPoo
     if args.mode == "client" and not (args.connect or args.zenoh_config):
         log.error("--mode client needs --connect ENDPOINT (a router)")
         return 2
+    interval = args.calibration_interval
+    if not (math.isfinite(interval) and interval >= 0.0):
+        log.error(f"--calibration-interval must be >= 0 s, got {interval:g}")
+        return 2
     if args.workers < 1:
         log.error("--workers must be >= 1")
         return 2
@@ -294,8 +319,16 @@ def _run(args: argparse.Namespace, stop: threading.Event, pools: list[PhysicsPoo
                     f"{args.site} as it is now"
                 )
             log.info(f"state {store.path} ({store.applied_count()} passages applied before)")
+        online = None
+        if not (args.no_state or args.no_online_calibration):
+            online = OnlineSetting(args.state or args.recordings / "state", interval)
         worker = PhysicsPool(
-            site, args.physics, workers=workers, budget=args.passage_budget, store=store
+            site,
+            args.physics,
+            workers=workers,
+            budget=args.passage_budget,
+            store=store,
+            calibration=online,
         )
         pools.append(worker)
         try:

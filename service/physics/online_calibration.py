@@ -19,15 +19,23 @@ start: it survives a restart. It belongs to the site file's foundation it starte
 ``site()`` is the site with the current values and a ``[calibration]`` table (source
 ``online``), ``ref()`` its ``CalibrationRef``, ``recalibrate(diagnoser)`` the diagnoser on it
 (``Diagnoser.recalibrated``), ``drift()`` how far the values have moved.
+
+``SharedCalibration`` is how the service's worker processes run it: several workers share
+one state file, each taking an exclusive ``flock`` on ``<site_id>.calibration.lock`` beside it
+around load-observe-save and reading the file again whenever another worker has changed it;
+at most one calibration wheel per ``interval`` seconds per site (the state file's time), since
+each new calibration makes every worker reduce the new track anew (seconds, after its reply).
 """
 
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import logging
 import math
 import os
 import tempfile
+import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -60,7 +68,7 @@ from sim_core.diagnosis.sensor import SensorModel
 if TYPE_CHECKING:
     from service.physics.diagnosis import Diagnoser
 
-__all__ = ["ODD", "RELINEARISE", "Drift", "OnlineCalibration"]
+__all__ = ["ODD", "RELINEARISE", "Drift", "OnlineCalibration", "SharedCalibration"]
 
 log = logging.getLogger(__name__)
 
@@ -142,6 +150,12 @@ class OnlineCalibration:
             tuple(kept.z), tuple(tuple(r) for r in kept.information), kept.wheels
         )
         self.history = list(kept.history)
+
+    def reload(self) -> None:
+        """Read the state file again (another process has changed it)."""
+        self.state = recursive.start(len(self.names), PRIOR_SD)
+        self.history = []
+        self._load()
 
     def _save(self) -> None:
         if self.path is None:
@@ -270,3 +284,53 @@ class OnlineCalibration:
         return Drift(
             self.names, self.factors, before, min(window, len(self.history)), self.state.wheels
         )
+
+
+class SharedCalibration:
+    """One site's ``OnlineCalibration`` as the service's worker processes share it (module
+    docstring): ``learn`` after a diagnosis, ``refresh`` to take up another worker's update.
+    ``interval``: s between calibration wheels at the site (0: every round wheel)."""
+
+    def __init__(self, site: SiteConfig, state_dir: Path, interval: float) -> None:
+        if not (math.isfinite(interval) and interval >= 0.0):
+            raise ValueError(f"calibration interval must be >= 0 s, got {interval!r}")
+        self.cal = OnlineCalibration(site, state_dir)
+        assert self.cal.path is not None
+        self.path: Path = self.cal.path
+        self.lock_path = self.path.with_suffix(".lock")
+        self.interval = interval
+        self._seen = self._stamp()
+
+    def _stamp(self) -> tuple[int, int, int] | None:
+        try:
+            st = self.path.stat()
+        except OSError:
+            return None
+        return (st.st_ino, st.st_mtime_ns, st.st_size)
+
+    def refresh(self) -> bool:
+        """Read the state again if another process has written it since; whether it had."""
+        stamp = self._stamp()
+        if stamp == self._seen:
+            return False
+        self.cal.reload()
+        self._seen = stamp
+        return True
+
+    def learn(
+        self, passage: WheelPassage, measured: MeasuredPassage, diagnosis: Diagnosis
+    ) -> OnlineStep | None:
+        """``OnlineCalibration.observe`` under the site's lock, on the state as the file has
+        it, unless the last calibration wheel was less than ``interval`` s ago."""
+        if diagnosis.flat is not None or measured.channels is None:
+            return None  # no lock taken for what cannot calibrate
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        with self.lock_path.open("a") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+            self.refresh()
+            last = None if self._seen is None else self._seen[1] / 1e9  # the last update
+            if last is not None and time.time() - last < self.interval:
+                return None
+            step = self.cal.observe(passage, measured, diagnosis)
+            self._seen = self._stamp()
+        return step

@@ -78,6 +78,9 @@ class DiagnosisOutcome:
     fitted: list[float]
     x: list[float]
     impacts_x: list[float]
+    calibration: str | None = None
+    """The site's online calibration as the diagnosis used it (its drift, one line), when
+    the twin calibrates online (``service.physics.online_calibration``)."""
 
 
 @dataclass(frozen=True)

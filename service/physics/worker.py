@@ -20,6 +20,7 @@ answered without asking the child.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import logging
 import multiprocessing
 import os
@@ -28,6 +29,7 @@ import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
 from schemas.diagnosis import MeasuredPassage
@@ -55,12 +57,18 @@ if TYPE_CHECKING:
     from multiprocessing.connection import Connection
     from multiprocessing.process import BaseProcess
 
+    from schemas.diagnosis import Diagnosis
     from service.physics.diagnosis import Diagnoser
+    from service.physics.online_calibration import SharedCalibration
     from service.physics.site_physics import SitePhysics
 
 log = logging.getLogger("railtwin.physics")
 
 T = TypeVar("T")
+
+CALIBRATION_INTERVAL = 300.0
+"""s: by default a site's twin learns from at most one round wheel per this time: each new
+calibration costs every worker a reduction of the new track (seconds)."""
 
 START_TIMEOUT = 600.0
 """s a new worker may take to import, compile (first run without a cache) and warm up."""
@@ -75,6 +83,7 @@ def _child_main(
     conn: Connection,
     snapshot: RailSnapshot | None,
     parent_pid: int,
+    calibration: OnlineSetting | None = None,
 ) -> None:
     ignore_stop_signals()  # the service stops us (through the pipe), not the terminal
     exit_when_orphaned(parent_pid)  # even while compiling, when the pipe is not read
@@ -91,6 +100,15 @@ def _child_main(
     if snapshot is not None:
         physics.restore_rail(*snapshot)
     diagnoser: Diagnoser | None = None
+    shared = None if own is None or calibration is None else _shared(site, calibration)
+
+    def new_diagnoser() -> Diagnoser:
+        from service.physics.diagnosis import Diagnoser
+
+        assert own is not None
+        made = Diagnoser(site, physics=own)
+        return made if shared is None else _adopt(shared, made)
+
     while True:
         try:
             msg = conn.recv()
@@ -103,9 +121,7 @@ def _child_main(
                 if msg[1]:
                     physics.warm_up()
                 if own is not None and msg[1]:  # ready before the first measurement
-                    from service.physics.diagnosis import Diagnoser
-
-                    diagnoser = Diagnoser(site, physics=own)
+                    diagnoser = new_diagnoser()
                     diagnoser.warm_up()
                 conn.send(("ok", time.perf_counter() - start, physics.rail_state()))
             elif op == "simulate":
@@ -133,10 +149,14 @@ def _child_main(
                             "this physics does not diagnose (it needs the site's "
                             "own physics, --physics sim_core)"
                         )
-                    from service.physics.diagnosis import Diagnoser
-
-                    diagnoser = Diagnoser(site, physics=own)
-                conn.send(("ok", diagnose_with(diagnoser, msg[1], msg[2])))
+                    diagnoser = new_diagnoser()
+                outcome = diagnose_with(diagnoser, msg[1], msg[2])
+                if shared is not None:
+                    line = shared.cal.drift().line()
+                    outcome = dataclasses.replace(outcome, calibration=line)
+                conn.send(("ok", outcome))
+                if shared is not None:  # after the verdict is sent: not in its latency
+                    diagnoser = _learn(shared, diagnoser, msg[1], msg[2], outcome.diagnosis)
             elif op == "stop":
                 conn.send(("ok",))
                 return
@@ -148,6 +168,61 @@ def _child_main(
             conn.send(("failed", str(exc)))
         except Exception as exc:  # reported to the twin, the worker goes on
             conn.send(("internal", f"{type(exc).__name__}: {exc}"))
+
+
+@dataclasses.dataclass(frozen=True)
+class OnlineSetting:
+    """Where the online calibration persists (the service's state dir) and the least time
+    between two calibration wheels at the site (``service.physics.online_calibration``)."""
+
+    state_dir: Path
+    interval: float
+
+
+def _shared(site: SiteConfig, setting: OnlineSetting) -> SharedCalibration | None:
+    """The site's shared online calibration, or None where there is none to learn (no
+    detector, or not a rail on supports) or it cannot start (logged)."""
+    from schemas.track import DiscreteFoundation, SlabFoundation
+    from service.physics.online_calibration import SharedCalibration
+
+    if site.detector is None or not isinstance(
+        site.foundation, (DiscreteFoundation, SlabFoundation)
+    ):
+        return None
+    try:
+        return SharedCalibration(site, setting.state_dir, setting.interval)
+    except Exception:  # the diagnosis goes on, on the site file's values
+        log.exception("online calibration of %s could not start", site.site_id)
+        return None
+
+
+def _adopt(shared: SharedCalibration, diagnoser: Diagnoser) -> Diagnoser:
+    """``diagnoser`` on the shared calibration's current values (itself when it has them)."""
+    cal = shared.cal
+    if cal.state.wheels == 0 or cal.ref().id == diagnoser.calibration.id:
+        return diagnoser
+    new = cal.recalibrate(diagnoser)
+    new.warm_up()  # the new track's reduction (seconds; then from the disk store)
+    log.info("online calibration: %s, id %s", cal.drift().line(), new.calibration.id)
+    return new
+
+
+def _learn(
+    shared: SharedCalibration,
+    diagnoser: Diagnoser,
+    passage: WheelPassage,
+    measured: MeasuredPassage,
+    diagnosis: Diagnosis,
+) -> Diagnoser:
+    """Learn from a diagnosed wheel and take up the current calibration; a failure is logged
+    and the diagnoser kept (the diagnosis was sent already)."""
+    try:
+        shared.learn(passage, measured, diagnosis)
+        shared.refresh()
+        return _adopt(shared, diagnoser)
+    except Exception:
+        log.exception("online calibration: %s not learned from", passage.passage_id)
+        return diagnoser
 
 
 # --- the twin's side ---------------------------------------------------------------------------
@@ -172,9 +247,14 @@ class ProcessPhysics:
         warm_up: bool = True,
         start_timeout: float = START_TIMEOUT,
         store: RailStore | None = None,
+        calibration: OnlineSetting | None = None,
     ) -> None:
         self.site = site
         self.store = store
+        self.calibration = calibration
+        """Where and how often the worker calibrates online (None: it does not)."""
+        self.calibration_line: str | None = None
+        """The online calibration's drift as the last diagnosis used it."""
         self.kind = kind
         self.budget = budget
         self.warm_up_enabled = warm_up
@@ -216,7 +296,7 @@ class ProcessPhysics:
         proc = self._ctx.Process(
             target=_child_main,
             name="railtwin-physics",
-            args=(self.site, self.kind, child, self._snapshot, os.getpid()),
+            args=(self.site, self.kind, child, self._snapshot, os.getpid(), self.calibration),
             daemon=True,
         )
         start_shielded(proc)  # a signal to the group while it starts is not its death
@@ -334,6 +414,9 @@ class ProcessPhysics:
         out: DiagnosisOutcome = self._call(
             f"measurement of {passage.passage_id}", ("diagnose", passage, measured)
         )[1]
+        if out.calibration is not None and out.calibration != self.calibration_line:
+            self.calibration_line = out.calibration
+            log.info("%s: online %s", self.site.site_id, out.calibration)
         return out
 
     @property
@@ -379,6 +462,7 @@ class PhysicsPool:
         budget: float = 30.0,
         warm_up: bool = True,
         store: RailStore | None = None,
+        calibration: OnlineSetting | None = None,
     ) -> None:
         if workers < 1:
             raise ValueError(f"workers must be >= 1, got {workers}")
@@ -391,7 +475,9 @@ class PhysicsPool:
         self.kind = kind
         self.store = store
         self.workers = [
-            ProcessPhysics(site, kind, budget=budget, warm_up=warm_up, store=store)
+            ProcessPhysics(
+                site, kind, budget=budget, warm_up=warm_up, store=store, calibration=calibration
+            )
             for _ in range(workers)
         ]
         self._idle: queue.SimpleQueue[ProcessPhysics] = queue.SimpleQueue()

@@ -77,6 +77,8 @@ class Pairing:
         self.passages = passages
         self.before_diagnosis = before_diagnosis
         self.done = 0
+        self.calibration: str | None = None
+        """The online calibration's drift as the last diagnosis used it (Health)."""
         self._waiting: OrderedDict[str, _Waiting] = OrderedDict()
         self._diagnosed: OrderedDict[str, None] = OrderedDict()
 
@@ -201,6 +203,8 @@ class Pairing:
                 pid,
             )
             return
+        if outcome.calibration is not None:
+            self.calibration = outcome.calibration
         # the wheel and the passage's time, whatever the diagnoser filled in (the fleet files
         # each diagnosis under its wheel, site and date)
         diag = outcome.diagnosis.model_copy(

@@ -256,4 +256,5 @@ class Twin:
             last_error=self.output.last_error,
             mcap_path=mcap_path,
             rrd_path=rrd_path,
+            calibration=self.pairing.calibration,
         )
