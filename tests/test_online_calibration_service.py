@@ -6,19 +6,31 @@ then from the track store)."""
 
 from __future__ import annotations
 
+import dataclasses
 import gzip
+import json
 import math
 import shutil
+import time
 from pathlib import Path
 
 import pytest
 
 from schemas.calibration import OnlineCalibrationState
 from schemas.diagnosis import MeasuredPassage
-from schemas.messages import WheelPassage
+from schemas.messages import Health, WheelPassage
 from service.clients.measured_io import read_measured_csv
+from service.physics.local import LocalPhysics
+from service.physics.port import DiagnosisOutcome
+from service.physics.stub import StubPhysics
 from service.physics.worker import OnlineSetting, ProcessPhysics
+from service.twin.inbound import Inbound
+from service.twin.twin import Twin
 from service.wire.site import load_site
+from tests.test_fuzz_inputs import GOOD_PASSAGE, RecordingSession
+from tests.test_fuzz_inputs import SITE as FUZZ
+from tests.test_network import measured as measured_force
+from tests.test_network import stand_in_diagnoser
 
 DATA = Path(__file__).parent / "data" / "calibration"
 SITE = load_site(DATA / "S02.site.toml")
@@ -89,3 +101,22 @@ def test_a_failing_calibration_loses_neither_the_diagnosis_nor_the_worker(
     for out in outs:
         ref = out.diagnosis.calibration
         assert out.diagnosis.flat is None and ref is not None and ref.source == "nominal"
+
+
+def test_the_health_reports_the_drift_the_last_diagnosis_used() -> None:
+    line = "calibration after 1 wheels: pad.stiffness x0.990 (-1.0 % in 1)"
+
+    def diagnose(p: WheelPassage, m: MeasuredPassage) -> DiagnosisOutcome:
+        return dataclasses.replace(stand_in_diagnoser(FUZZ.site_id, p, m), calibration=line)
+
+    twin = Twin(FUZZ, RecordingSession(), LocalPhysics(StubPhysics(FUZZ), diagnose=diagnose))  # type: ignore[arg-type]
+    assert twin.health().calibration is None  # before any diagnosis
+    pid = GOOD_PASSAGE["passage_id"]
+    for key, payload in (
+        (twin.keys.passage, json.dumps(GOOD_PASSAGE).encode()),
+        (twin.keys.measured, measured_force(pid).model_dump_json().encode()),
+    ):
+        twin.serve(Inbound(key, payload, time.time_ns(), time.monotonic()))
+    assert twin.pairing.done == 1
+    health = Health.model_validate_json(twin.health().model_dump_json())
+    assert health.calibration == line
