@@ -98,6 +98,18 @@ REANALYSE = ["--site", str(SITE), "--out", "o"]
 # (id, argv with {file} placeholders, exit status, what the line names besides the file)
 CASES: list[tuple[str, list[str], int, tuple[str, ...]]] = [
     ("simulate-malformed", ["simulate", "{bad.json}"], 2, ("not valid JSON",)),
+    (
+        "calibrate-site-malformed",
+        ["calibrate", "--site", "{bad.toml}", "--out", "o.toml", "."],
+        2,
+        ("not valid TOML",),
+    ),
+    (
+        "calibrate-site-without-track",
+        ["calibrate", "--site", str(SITE), "--out", "o.toml", "."],
+        2,
+        ("foundation.kind", "'compliant'"),
+    ),
     ("simulate-invalid", ["simulate", "{scenario.json}"], 2, ("wheel.mass",)),
     (
         "diagnose-site-malformed",

@@ -45,7 +45,7 @@ def test_good_passage_has_defaults_and_version() -> None:
     p = WheelPassage.model_validate_json(json.dumps(GOOD))
     assert p.outline.kind == "round"
     assert p.phase == 0.0
-    assert json.loads(p.model_dump_json())["schema_version"] == MESSAGE_SCHEMA_VERSION == "1.4"
+    assert json.loads(p.model_dump_json())["schema_version"] == MESSAGE_SCHEMA_VERSION == "1.5"
 
 
 @pytest.mark.parametrize(
@@ -98,7 +98,7 @@ def test_every_message_has_a_json_schema_and_a_version() -> None:
         assert schema["title"] == name
         if name not in ("TrainFile",):
             assert "schema_version" in schema["properties"], name
-        assert encoding_schema(model) == f"railtwin.{name}/1.4"
+        assert encoding_schema(model) == f"railtwin.{name}/1.5"
 
 
 def test_result_series_must_have_one_length() -> None:

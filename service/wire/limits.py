@@ -152,9 +152,21 @@ def structure_problem(payload: bytes, limit: int = MAX_NESTING) -> tuple[str, st
     return None
 
 
+SAMPLES_BEYOND_ANY_LIMIT = 2**62
+"""What ``passage_samples`` answers for a passage too slow to count (a speed of 1e-308 m/s
+makes the count overflow a float): far above every limit, so it is refused as too long."""
+
+
 def passage_samples(length: float, sample_rate: float, speed: float) -> int:
-    """Samples of one passage: x from 0 to ``length`` at ``speed``, ``sample_rate`` Hz."""
-    return math.floor(length / speed * sample_rate * (1.0 + 1e-12)) + 1
+    """Samples of one passage: x from 0 to ``length`` at ``speed``, ``sample_rate`` Hz.
+
+    >>> passage_samples(3.0, 2000.0, 30.0), passage_samples(3.0, 2000.0, 2.2e-308) > 10**18
+    (201, True)
+    """
+    n = length / speed * sample_rate * (1.0 + 1e-12)
+    if not n < SAMPLES_BEYOND_ANY_LIMIT:  # inf (or NaN) included
+        return SAMPLES_BEYOND_ANY_LIMIT
+    return math.floor(n) + 1
 
 
 CHANNEL_BYTES_PER_SAMPLE = 25
