@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sim_core.contact_laws import ContactModel
-from sim_core.diagnosis.forward import Flat, RailTables, wheel_table
+from sim_core.diagnosis.forward import RailTables, Tread, wheel_table
 from sim_core.diagnosis.sensor import SensorModel
 from sim_core.passage import PassageSpec, simulate_passage
 from sim_core.rail import RailProfile
@@ -95,20 +95,23 @@ class CribSite:
         self,
         wheel: CribWheel,
         speed: float,
-        flat: Flat | None,
+        flat: Tread | None,
         t_out: NDArray[np.float64],
         *,
         line: bool = False,
         measurement_rate: float = 10_000.0,
+        rails: RailTables | None = None,
     ) -> CribRun:
         """The wheel with ``flat`` (None: round) at ``speed`` over the fit (or ``line``)
         stretch; channels at ``t_out`` (instants outside the stretch read 0 before it and
-        the last value after it)."""
+        the last value after it). ``rails``: the rail rolled over (default the site's
+        even rail; a synthetic record hands in a rough one)."""
         x0, x1 = self.line_stretch if line else self.fit_stretch
         rate = self.sensor.fine_rate(measurement_rate)
         t0 = x0 / speed
         duration = (x1 - x0) / speed
-        table = wheel_table(wheel.radius, flat, self.rails, x0, x1 + 2.0 * speed / rate)
+        rail = self.rails if rails is None else rails
+        table = wheel_table(wheel.radius, flat, rail, x0, x1 + 2.0 * speed / rate)
         spec = PassageSpec(
             mass=wheel.mass,
             load=wheel.load,

@@ -22,10 +22,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from sim_core.diagnosis.crib_forward import RTOL, RUN_IN, CribSite, CribWheel, line_times
-from sim_core.diagnosis.forward import RailTables, Tread, wheel_table
+from sim_core.diagnosis.crib_forward import CribSite, CribWheel, line_times
+from sim_core.diagnosis.forward import RailTables, Tread
 from sim_core.diagnosis.synthetic import rough_rail
-from sim_core.passage import PassageSpec, simulate_passage
 from sim_core.rail import RailProfile
 
 __all__ = ["CribRecord", "crib_record"]
@@ -67,31 +66,13 @@ def crib_record(
         raise ValueError("crib record: speed and sample rate must be positive")
     if noise_fraction < 0.0 or roughness_rms < 0.0:
         raise ValueError("crib record: noise and roughness must not be negative")
-    x0, x1 = -RUN_IN, max(site.length, site.fit_stretch[1])
-    fine = site.sensor.fine_rate(sample_rate)
+    x0, x1 = site.line_stretch
     rails = RailTables(rough_rail(RailProfile.flat(), x0 - 1.0, x1 + 1.0, roughness_rms, seed))
-    table = wheel_table(wheel.radius, tread, rails, x0, x1 + 2.0 * speed / fine)
-    site.track.prepare(round(x0, 9), round(x1, 9), site.cribs)
-    spec = PassageSpec(
-        mass=wheel.mass,
-        load=wheel.load,
-        speed=speed,
-        duration=(x1 - x0) / speed,
-        sample_rate=fine,
-        contact=wheel.contact,
-        foundation=site.track,
-        rtol=RTOL,
-        t0=x0 / speed,
-        cribs=site.cribs,
-    )
-    out = simulate_passage(table, spec, track_dents=False)
     t_out = line_times(site.length, speed, sample_rate)
+    run = site.run(wheel, speed, tread, t_out, line=True, measurement_rate=sample_rate, rails=rails)
     rng = np.random.default_rng(seed + 1)
     sigma = noise_fraction * wheel.load
-    chans = np.empty((len(site.cribs), t_out.size))
-    for i, c in enumerate(site.cribs):
-        filtered = site.sensor.filter(out.channels[c.id], fine)
-        chans[i] = np.interp(t_out, out.t, filtered) + rng.normal(0.0, sigma, t_out.size)
-    on_site = (out.t >= 0.0) & (out.t <= site.length / speed)
-    peak = float(out.force[on_site].max()) if bool(on_site.any()) else float(out.peak_force)
+    chans = run.channels + rng.normal(0.0, sigma, run.channels.shape)
+    on_site = (run.t >= 0.0) & (run.t <= site.length / speed)
+    peak = float(run.force[on_site].max()) if bool(on_site.any()) else run.peak_force
     return CribRecord(sample_rate, chans, peak, sigma)
