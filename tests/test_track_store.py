@@ -51,3 +51,37 @@ def test_off_writes_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> 
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
     _fresh(2.4)
     assert not list(tmp_path.rglob(f"*{store.SUFFIX}"))
+
+
+def test_the_cache_is_bounded_least_recently_used_first(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """At its bound the cache drops the entry read longest ago, and earlier formats first;
+    the entry just written always stays."""
+    import os
+
+    monkeypatch.setenv("RAILTWIN_TRACK_CACHE", str(tmp_path))
+    monkeypatch.delenv("RAILTWIN_TRACK_CACHE_MAX_MB", raising=False)
+    arrays = {"a": np.zeros(1000)}
+    store.save("one", arrays)
+    store.save("two", arrays)
+    legacy = tmp_path / "old.npz"
+    legacy.write_bytes(b"x" * 100)
+    size = (tmp_path / f"one{store.SUFFIX}").stat().st_size
+    # "one" read after "two" was written: "two" is the least recently used
+    os.utime(tmp_path / f"one{store.SUFFIX}", (1000.0, 1000.0))
+    os.utime(tmp_path / f"two{store.SUFFIX}", (900.0, 900.0))
+    assert store.load("one") is not None  # touches it
+    # room for exactly two entries: writing a third evicts the legacy file and "two"
+    monkeypatch.setenv("RAILTWIN_TRACK_CACHE_MAX_MB", str(2 * size / 1024 / 1024))
+    store.save("three", arrays)
+    names = sorted(p.name for p in tmp_path.iterdir())
+    assert names == [f"one{store.SUFFIX}", f"three{store.SUFFIX}"]
+    # exactly at the bound nothing more goes; a bound of 0 keeps only the entry just written
+    assert store.evict(tmp_path) == 0
+    monkeypatch.setenv("RAILTWIN_TRACK_CACHE_MAX_MB", "0")
+    store.save("four", arrays)
+    assert [p.name for p in tmp_path.iterdir()] == [f"four{store.SUFFIX}"]
+    # an unreadable bound is the default, never an error
+    monkeypatch.setenv("RAILTWIN_TRACK_CACHE_MAX_MB", "lots")
+    assert store.max_bytes() == store.MAX_MB * 1024 * 1024

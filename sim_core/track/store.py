@@ -9,6 +9,11 @@ temporary file and renamed, so a reader never sees half a file. An unreadable, t
 damaged (CRC-32 of the payload) or foreign entry is ignored and replaced.
 ``RAILTWIN_TRACK_CACHE=off`` switches it off.
 
+The directory is bounded: after each write, entries beyond ``RAILTWIN_TRACK_CACHE_MAX_MB``
+(``MAX_MB`` by default) are deleted, the least recently used first (a read touches its
+entry's mtime), never the one just written. A calibrating twin reduces a new track for each
+step of its estimate, and an unbounded cache would fill the disk.
+
 The file is ``MAGIC``, the length of a JSON header (8 bytes, little-endian), the header
 (each array's name, dtype, shape and offset; the payload's length and CRC-32) and the
 arrays' bytes: read in one piece, the arrays are views of it (an ``.npz`` took 2-3x longer
@@ -39,6 +44,13 @@ FORMAT = "railtwin-track-3"
 SUFFIX = ".track"
 """An entry's file name: its key and this."""
 
+MAX_MB = 2048
+"""The cache's default bound, MB (``RAILTWIN_TRACK_CACHE_MAX_MB`` overrides it): ~700 site-case
+reductions of ~3 MB."""
+
+LEGACY_SUFFIXES = (".npz",)
+"""Entries of earlier formats, never read again: counted against the bound, and evicted first."""
+
 MAGIC = b"RTTRACK1"
 ALIGN = 64
 
@@ -67,14 +79,59 @@ def load(name: str, fields: tuple[str, ...] = ()) -> dict[str, np.ndarray] | Non
     d = directory()
     if d is None:
         return None
+    path = d / f"{name}{SUFFIX}"
     try:
-        data = _read(d / f"{name}{SUFFIX}")
+        data = _read(path)
         arrays = _parse(data) if data is not None else None
     except Exception:  # anything a foreign or damaged file raises
         return None
     if arrays is None or any(f not in arrays for f in fields):
         return None
+    with contextlib.suppress(OSError):
+        os.utime(path)  # recently used: evicted last
     return arrays
+
+
+def max_bytes() -> int:
+    """The cache's bound in bytes, from ``RAILTWIN_TRACK_CACHE_MAX_MB`` (a number ≥ 0) or
+    ``MAX_MB``; an unreadable value is the default (the cache never stops the physics)."""
+    raw = os.environ.get("RAILTWIN_TRACK_CACHE_MAX_MB")
+    mb = float(MAX_MB)
+    if raw:
+        with contextlib.suppress(ValueError):
+            v = float(raw)
+            if v >= 0.0 and v == v and v != float("inf"):
+                mb = v
+    return int(mb * 1024 * 1024)
+
+
+def evict(d: Path, keep: str = "") -> int:
+    """Delete entries of ``d`` until they fit ``max_bytes()``: earlier formats first, then the
+    least recently used, never ``keep`` (a file name). Returns how many were deleted."""
+    entries = []
+    try:
+        with os.scandir(d) as it:
+            for e in it:
+                legacy = e.name.endswith(LEGACY_SUFFIXES)
+                if not (e.name.endswith(SUFFIX) or legacy) or not e.is_file():
+                    continue
+                st = e.stat()
+                entries.append((not legacy, st.st_mtime, e.name, st.st_size))
+    except OSError:
+        return 0
+    total = sum(e[3] for e in entries)
+    limit = max_bytes()
+    deleted = 0
+    for _, _, fname, size in sorted(entries):
+        if total <= limit:
+            break
+        if fname == keep:
+            continue
+        with contextlib.suppress(OSError):
+            os.unlink(d / fname)
+            total -= size
+            deleted += 1
+    return deleted
 
 
 def _read(path: Path) -> bytearray | None:
@@ -144,3 +201,4 @@ def save(name: str, arrays: dict[str, Any]) -> None:
         if tmp is not None:
             with contextlib.suppress(OSError):
                 os.unlink(tmp)
+    evict(d, keep=f"{name}{SUFFIX}")
