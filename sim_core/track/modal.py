@@ -15,6 +15,14 @@ From M, C, K (``sim_core.track.assembly``):
    the modes above the cutoff (Kᵀ⁻¹ less the modal sum) on every element, and
    the element's own "bubble", the local deflection under a point load between
    its nodes (``beam.bubble_compliance``). Both act in series with the contact.
+   Kᵀ⁻¹ is needed only on the kept elements' dofs: their columns are solved from a sparse
+   LU factorisation of K (``_compliance_columns``; K is banded but for the sleepers' dofs),
+   not read from a dense inverse: the same to rounding, in a quarter to a tenth of the time.
+
+The undamped modes depend on K and M only: a track that differs in its damping alone
+(the calibration's damping sensitivities) reuses them (``_undamped``, keyed by the track
+without its damping and the stretch: the same K and M to the bit) and solves only the
+small complex eigenproblem.
 
 The rail under the wheel is then w(x) = Σ Re(R_j(x)·ζ_j) − r(x)·F, with R
 interpolated from the nodal rows by the element's shape functions, and a crib's
@@ -34,12 +42,17 @@ finite element one, whatever the cutoff):
 
 from __future__ import annotations
 
+import dataclasses
 import functools
+import threading
+from collections import OrderedDict
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import scipy.linalg as sla
+import scipy.sparse as sps
+import scipy.sparse.linalg as spla
 from numpy.typing import NDArray
 
 from sim_core.track import store
@@ -51,8 +64,8 @@ from sim_core.track.beam import (
     shear_ratio,
 )
 from sim_core.track.layout import ABSORBER_BAYS, ELEMENTS_PER_BAY, MARGIN_BAYS, TrackLayout, layout
-from sim_core.track.spec import Crib, TrackError, TrackSpec
-from sim_core.track.stepper import MODE_DTYPE, Modes
+from sim_core.track.spec import Crib, Support, TrackError, TrackSpec
+from sim_core.track.stepper import Modes
 
 CUTOFF = 16000.0
 """Highest undamped track frequency kept as a mode, Hz (convergence: docs/MODEL.md §8)."""
@@ -67,6 +80,15 @@ eigen-solves grow as their cube: ~2 400 for 30 m of 0.6 m bays)."""
 
 BUBBLE_POINTS = 33
 """Samples of an element's bubble compliance over ξ in [0, 1] (interpolated linearly)."""
+
+UNDAMPED_KEPT = 4
+"""Undamped mode sets kept in memory for reuse (``_undamped``): a calibration's sensitivities
+to the damping values share the modes of the track they start from."""
+
+UNDAMPED_MAX_DOFS = 1500
+"""Only models up to this many dofs keep their modes for reuse (the calibration's ~450, a
+few MB at most each; the twin's 30 m stretches, ~2 400 dofs, are reduced once and would
+hold ~20 MB each)."""
 
 
 class TrackTooLargeError(TrackError):
@@ -105,21 +127,17 @@ class ModalTrack:
 
     @functools.cached_property
     def arrays(self) -> Modes:
-        """The compiled stepper's view: real and imaginary parts apart, the modes' arrays in
-        ``MODE_DTYPE`` (single precision)."""
+        """The compiled stepper's view: real and imaginary parts apart."""
 
         def c(a: NDArray[np.float64]) -> NDArray[np.float64]:
             return np.ascontiguousarray(a, dtype=np.float64)
 
-        def s(a: NDArray[Any]) -> NDArray[np.floating[Any]]:
-            return np.ascontiguousarray(a, dtype=MODE_DTYPE)
-
         rows = self.crib_rows
         return Modes(
-            s(self.lam.real),
-            s(self.lam.imag),
-            s(self.rows.real),
-            s(self.rows.imag),
+            c(self.lam.real),
+            c(self.lam.imag),
+            c(self.rows.real),
+            c(self.rows.imag),
             c(self.elem_x),
             c(self.elem_len),
             c(self.elem_phi),
@@ -127,8 +145,8 @@ class ModalTrack:
             c(self.bubble),
             c(self.crib_lo),
             c(self.crib_hi),
-            s(rows.real.reshape(len(self.crib_ids), self.n_modes)),
-            s(rows.imag.reshape(len(self.crib_ids), self.n_modes)),
+            c(rows.real.reshape(len(self.crib_ids), self.n_modes)),
+            c(rows.imag.reshape(len(self.crib_ids), self.n_modes)),
         )
 
     def element_of(self, x: float) -> int:
@@ -230,7 +248,8 @@ def _reduce(
     kept = store.load(name, (*_ARRAYS, "x"))
     if kept is not None and kept["x"].shape == lay.x.shape and np.array_equal(kept["x"], lay.x):
         return _from_arrays(track, lay, cutoff, cribs, kept)
-    mt = _modal(assemble(track, lay), cutoff, cribs, x0, x1)
+    same_km = (_stiffness_key(track), x0, x1, gauges, margin_bays, absorber_bays, elements_per_bay)
+    mt = _modal(assemble(track, lay), cutoff, cribs, x0, x1, modes_key=same_km)
     store.save(name, {f: getattr(mt, f) for f in _ARRAYS} | {"x": lay.x})
     return mt
 
@@ -267,13 +286,66 @@ def _from_arrays(
     )
 
 
+_UNDAMPED: OrderedDict[Any, tuple[NDArray[np.float64], NDArray[np.float64]]] = OrderedDict()
+_UNDAMPED_LOCK = threading.Lock()
+
+
+def _undamped(
+    k: NDArray[np.float64], m: NDArray[np.float64], w2max: float, key: Any = None
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(ω², Φ): the mass-normalised undamped modes of K, M with ω² ≤ ``w2max``. With a
+    ``key`` (what K and M are made from: ``_stiffness_key``), the last ``UNDAMPED_KEPT``
+    sets are reused (module docstring)."""
+    if key is None or k.shape[0] > UNDAMPED_MAX_DOFS:
+        w2, phi = sla.eigh(k, m, subset_by_value=(-np.inf, w2max), driver="gvx")
+        return w2, phi
+    full = (key, float(w2max))
+    with _UNDAMPED_LOCK:
+        got = _UNDAMPED.get(full)
+        if got is not None:
+            _UNDAMPED.move_to_end(full)
+            return got
+    w2, phi = sla.eigh(k, m, subset_by_value=(-np.inf, w2max), driver="gvx")
+    w2.flags.writeable = False
+    phi.flags.writeable = False
+    with _UNDAMPED_LOCK:
+        _UNDAMPED[full] = (w2, phi)
+        while len(_UNDAMPED) > UNDAMPED_KEPT:
+            _UNDAMPED.popitem(last=False)
+    return w2, phi
+
+
+def _stiffness_key(track: TrackSpec) -> TrackSpec:
+    """``track`` without its damping: what K and M depend on (``assembly.assemble`` puts the
+    pads' and the ballast's damping in C alone)."""
+    ballast = None if track.ballast is None else Support(track.ballast.stiffness)
+    return dataclasses.replace(track, pad=Support(track.pad.stiffness), ballast=ballast)
+
+
+def _compliance_columns(k: NDArray[np.float64], lo: int, hi: int) -> NDArray[np.float64]:
+    """K⁻¹[lo:hi, lo:hi]: the static compliance among dofs lo..hi-1, from a sparse LU of K
+    solved for those columns only (the same as a dense inverse's to rounding)."""
+    n = k.shape[0]
+    cols = np.arange(lo, hi)
+    rhs = np.zeros((n, cols.size))
+    rhs[cols, np.arange(cols.size)] = 1.0
+    x = spla.splu(sps.csc_matrix(k)).solve(rhs)
+    return np.asarray(x[lo:hi], dtype=np.float64)
+
+
 def _modal(
-    mats: TrackMatrices, cutoff: float, cribs: tuple[Crib, ...], x0: float, x1: float
+    mats: TrackMatrices,
+    cutoff: float,
+    cribs: tuple[Crib, ...],
+    x0: float,
+    x1: float,
+    *,
+    modes_key: Any = None,
 ) -> ModalTrack:
     lay = mats.layout
     nr = mats.n_rail_dofs
     w2max = (2.0 * np.pi * cutoff) ** 2
-    w2, phi = sla.eigh(mats.k, mats.m, subset_by_value=(-np.inf, w2max), driver="gvx")
+    w2, phi = _undamped(mats.k, mats.m, w2max, modes_key)
     n = w2.size
     cr = phi.T @ mats.c @ phi
     a = np.zeros((2 * n, 2 * n))
@@ -306,14 +378,14 @@ def _modal(
     rows = (phi_r[2 * first : 2 * last + 2] @ a_k) * scale
     acc = (phi_r @ a_k) * (lam_k * scale)
     # static: FE compliance blocks and the truncation's residual, per element
-    kinv = np.linalg.inv(mats.k)
+    kinv = _compliance_columns(mats.k, 2 * first, 2 * last + 2)
     kept = range(first, last)
     blocks = np.empty((len(kept), 4, 4))
     resid = np.empty((len(kept), 4, 4))
     for k, e in enumerate(kept):
         d = slice(2 * e, 2 * e + 4)
-        blocks[k] = kinv[d, d]
-        resid[k] = kinv[d, d] - (phi_r[d] / w2) @ phi_r[d].T
+        blocks[k] = kinv[2 * k : 2 * k + 4, 2 * k : 2 * k + 4]
+        resid[k] = blocks[k] - (phi_r[d] / w2) @ phi_r[d].T
     lengths = lay.lengths[first:last]
     phis = np.array([shear_ratio(mats.track.rail, float(L)) for L in lengths])
     grid = np.linspace(0.0, 1.0, BUBBLE_POINTS)
