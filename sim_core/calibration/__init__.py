@@ -6,6 +6,7 @@ rail's inertia between the gauges, the chain's response to both). The modules, o
 each, no I/O:
 
 - ``forward``: what a detector records of a round wheel on a given track (``predict_channels``);
+- ``crib_chain``: a crib's channel through the measuring chain in one pass (``forward``'s last step);
 - ``parameters``: the track's calibrated parameters as a vector of log-factors on the nominal;
 - ``residuals``: a calibration passage and its noise-weighted channel residuals, the noise
   estimated from the record;

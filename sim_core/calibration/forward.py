@@ -16,6 +16,8 @@ after it to several % of P. So the channel is split in two:
 and the chain runs on ``s + F·indicator`` at the fine rate, started in steady state on the
 first value (the wheel then stands outside every crib), as the detector's own chain runs
 from the start of the run-in.
+(``crib_chain.crib_channels`` does this in one pass without the fine grid's arrays;
+``chain_on_grid`` is the same with NumPy arrays, its reference.)
 
 The wheel starts ``pre_roll`` metres before x = 0 in static equilibrium, so that the start
 transient has decayed where the record begins (the record's t = 0 is x_C = 0).
@@ -47,6 +49,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from sim_core.calibration.crib_chain import crib_channels
 from sim_core.constraint import flat_constraint
 from sim_core.contact_laws import ContactModel
 from sim_core.diagnosis.sensor import SensorModel
@@ -65,6 +68,7 @@ __all__ = [
     "STEP_TRAVEL",
     "STRETCH_GRID",
     "Wheel",
+    "chain_on_grid",
     "crib_indicator",
     "predict_channels",
 ]
@@ -181,17 +185,44 @@ def predict_channels(
     out = simulate_on_track(flat_constraint(), spec, track, model=mt, step=step)
     t, x, f = out.t, out.x, out.force
     n_fine = math.floor(duration * fine_rate) + 1
-    t_fine = x0 / v + np.arange(n_fine) / fine_rate
-    x_fine = t_fine * v
-    f_fine = np.interp(t_fine, t, f)
-    result = np.empty((t_meas.size, len(cribs)))
+    smooth = np.empty((len(cribs), t.size))
     for i, c in enumerate(cribs):
         inside = np.where((x > c.x_a) & (x < c.x_b), 1.0, 0.0)
-        inside[np.isclose(x, c.x_a, rtol=0.0, atol=1e-12)] = 0.5
-        inside[np.isclose(x, c.x_b, rtol=0.0, atol=1e-12)] = 0.5
-        smooth = out.channels[c.id] - f * inside
-        u = np.interp(t_fine, t, smooth) + f_fine * crib_indicator(
-            x_fine, v / fine_rate, c.x_a, c.x_b
+        inside[np.abs(x - c.x_a) <= 1e-12] = 0.5
+        inside[np.abs(x - c.x_b) <= 1e-12] = 0.5
+        smooth[i] = out.channels[c.id] - f * inside
+    result = np.empty((t_meas.size, len(cribs)))
+    if bool(np.all(np.diff(t_meas) >= 0.0)):
+        lo = np.array([c.x_a for c in cribs], dtype=np.float64)
+        hi = np.array([c.x_b for c in cribs], dtype=np.float64)
+        crib_channels(t, f, smooth, x0 / v, fine_rate, n_fine, v, lo, hi, chain, t_meas, result)
+        return result
+    for i, c in enumerate(cribs):  # instants out of order: the fine grid's arrays
+        result[:, i] = chain_on_grid(
+            t, f, smooth[i], x0 / v, fine_rate, n_fine, v, c.x_a, c.x_b, chain, t_meas
         )
-        result[:, i] = np.interp(t_meas, t_fine, chain.filter(u, fine_rate))
     return result
+
+
+def chain_on_grid(
+    t: NDArray[np.float64],
+    f: NDArray[np.float64],
+    smooth: NDArray[np.float64],
+    t0: float,
+    fine_rate: float,
+    n_fine: int,
+    v: float,
+    x_a: float,
+    x_b: float,
+    chain: SensorModel,
+    t_meas: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """A crib's channel at ``t_meas`` built on the fine grid with NumPy (module docstring):
+    what ``crib_chain.crib_channels`` computes in one pass, kept for ``t_meas`` out of order
+    and as its reference."""
+    t_fine = t0 + np.arange(n_fine) / fine_rate
+    x_fine = t_fine * v
+    u = np.interp(t_fine, t, smooth) + np.interp(t_fine, t, f) * crib_indicator(
+        x_fine, v / fine_rate, x_a, x_b
+    )
+    return np.interp(t_meas, t_fine, chain.filter(u, fine_rate))
