@@ -65,7 +65,7 @@ from sim_core.track.beam import (
 )
 from sim_core.track.layout import ABSORBER_BAYS, ELEMENTS_PER_BAY, MARGIN_BAYS, TrackLayout, layout
 from sim_core.track.spec import Crib, Support, TrackError, TrackSpec
-from sim_core.track.stepper import Modes
+from sim_core.track.stepper import MODE_DTYPE, Modes
 
 CUTOFF = 16000.0
 """Highest undamped track frequency kept as a mode, Hz (convergence: docs/MODEL.md §8)."""
@@ -127,17 +127,21 @@ class ModalTrack:
 
     @functools.cached_property
     def arrays(self) -> Modes:
-        """The compiled stepper's view: real and imaginary parts apart."""
+        """The compiled stepper's view: real and imaginary parts apart, the modes' arrays in
+        ``MODE_DTYPE`` (single precision)."""
 
         def c(a: NDArray[np.float64]) -> NDArray[np.float64]:
             return np.ascontiguousarray(a, dtype=np.float64)
 
+        def s(a: NDArray[Any]) -> NDArray[np.floating[Any]]:
+            return np.ascontiguousarray(a, dtype=MODE_DTYPE)
+
         rows = self.crib_rows
         return Modes(
-            c(self.lam.real),
-            c(self.lam.imag),
-            c(self.rows.real),
-            c(self.rows.imag),
+            s(self.lam.real),
+            s(self.lam.imag),
+            s(self.rows.real),
+            s(self.rows.imag),
             c(self.elem_x),
             c(self.elem_len),
             c(self.elem_phi),
@@ -145,8 +149,8 @@ class ModalTrack:
             c(self.bubble),
             c(self.crib_lo),
             c(self.crib_hi),
-            c(rows.real.reshape(len(self.crib_ids), self.n_modes)),
-            c(rows.imag.reshape(len(self.crib_ids), self.n_modes)),
+            s(rows.real.reshape(len(self.crib_ids), self.n_modes)),
+            s(rows.imag.reshape(len(self.crib_ids), self.n_modes)),
         )
 
     def element_of(self, x: float) -> int:
