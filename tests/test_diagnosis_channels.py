@@ -22,7 +22,12 @@ from schemas.messages import WheelPassage
 from service.clients.measured_io import read_measured
 from service.physics.diagnosis import Diagnoser
 from service.wire.site import load_site
-from sim_core.diagnosis.crib_screen import channel_noise, round_template, screen
+from sim_core.diagnosis.crib_screen import (
+    channel_noise,
+    rough_rail_load,
+    round_template,
+    screen,
+)
 from sim_core.diagnosis.sensor import SensorModel
 from sim_core.track.spec import Crib
 
@@ -106,15 +111,20 @@ def test_a_fresh_flat_is_found_from_its_channels(flat: Diagnosis) -> None:
 
 def test_the_line_speed_forecast_covers_both_peaks(flat: Diagnosis) -> None:
     """At 160 km/h the same wheel (same phase) on the true track: its contact peak and the
-    detector's peak (the channels through the chain), each within ±20 % and banded."""
+    detector's peak (the channels through the chain), each within ±20 % and banded. The
+    detector's band spans the rough rail's dynamic load either way: over the length interval
+    alone it was 0.3 kN wide, 5 kN above the truth (this 34 mm flat's detector peak at
+    160 km/h hardly moves with its length)."""
     line = _truth("S01_P13")["line_speed"]
     assert flat.peak_force_at_line_speed == pytest.approx(line["peak_contact"], rel=0.2)
     assert flat.peak_channel_at_line_speed == pytest.approx(line["peak_measured"], rel=0.2)
     lo, hi = flat.peak_force_at_line_speed_low, flat.peak_force_at_line_speed_high
     assert lo is not None and hi is not None and lo <= line["peak_contact"] <= hi
     clo, chi = flat.peak_channel_at_line_speed_low, flat.peak_channel_at_line_speed_high
-    assert clo is not None and chi is not None and clo <= chi
+    assert clo is not None and chi is not None and clo <= line["peak_measured"] <= chi
     assert not math.isnan(chi)
+    rough = rough_rail_load(44.44, 66072.0)  # the site's line speed, the wheel's load
+    assert chi - clo >= 2.0 * rough and hi - lo >= 2.0 * rough
 
 
 def test_a_diagnoser_swaps_in_a_calibrated_site() -> None:

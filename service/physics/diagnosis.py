@@ -34,7 +34,7 @@ from service.physics.site_physics import SitePhysics
 from service.wire.measured_channels import CHANNELS_FIELD, channels_mismatch
 from sim_core.diagnosis.crib_fit import CribEstimate, fit_channels, flat_of
 from sim_core.diagnosis.crib_forward import CribSite, CribWheel, line_times
-from sim_core.diagnosis.crib_screen import round_template
+from sim_core.diagnosis.crib_screen import rough_rail_load, round_template
 from sim_core.diagnosis.estimate import (
     DEFAULT_OPTIONS,
     DEPTH_FACTORS,
@@ -537,9 +537,10 @@ class Diagnoser:
         """(contact point, low, high, detector point, low, high) at line speed: the fitted
         flat re-simulated over the site's record window [0, length] on the site's track
         (same phase: the impacts fall where they fell), the band over the length interval's
-        ends, and worn flats 0.7 x as deep at the short end and 1.3 x at the long one. A
-        round wheel's forecast is its static
-        load and its round template's peak (no simulation: the twin's rail is even)."""
+        ends, and worn flats 0.7 x as deep at the short end and 1.3 x at the long one, widened
+        either way by the rough rail's dynamic load at line speed (``rough_rail_load``: the
+        twin's rail is even). A round wheel's forecast is its static load and its round
+        template's peak (no simulation: the twin's rail is even)."""
         t_line = line_times(self.site.length, line_speed, sample_rate)
         if est.flat is None:
             tpl = round_template(cs.cribs, line_speed, wheel.load, t_line, cs.sensor)
@@ -574,13 +575,16 @@ class Diagnoser:
         dp = [p for p in detector if p is not None]
         if not cp:
             return None, None, None, None, None, None
+        # the twin's rail is even: the site's roughness moves the peaks either way by up to
+        # its dynamic load at line speed (the rough rail's bound, crib_screen)
+        rough = rough_rail_load(line_speed, wheel.load)
         return (
             contact[0],
-            min(cp),
-            max(cp),
+            max(min(cp) - rough, 0.0),
+            max(cp) + rough,
             detector[0],
-            min(dp),
-            max(dp),
+            max(min(dp) - rough, 0.0),
+            max(dp) + rough,
         )
 
     def line_peak(

@@ -1,8 +1,9 @@
 """The fit from crib channels: which flat makes the twin's channels look like the measured ones.
 
 The twin simulates the wheel on the site's track with the site's cribs and chain
-(``crib_forward``); a candidate is a flat's kind, length and phase. A forward run costs
-0.05-0.35 s (about 20 a flat wheel), so the search is short and driven by the record:
+(``crib_forward``); a candidate is a flat's kind, length and phase. A forward run simulates
+only the windows compared (``CribSite.run_spans``, 0.01-0.07 s; 16-21 a flat wheel), so
+the search is short and driven by the record:
 
 1. **Screen** (``crib_screen``, no simulation): a record within the round wheel's allowance
    of the round template is dismissed.
@@ -10,17 +11,27 @@ The twin simulates the wheel on the site's track with the site's cribs and chain
    template (summed over the cribs) at its largest, traced back to where it first reached
    half of that (the unloading dip or the first impact: a long flat's largest peak may be a
    later bounce). Windows around it and every 2πR/V from it (one per turn in the record)
-   are compared, every crib; all turns at once (the phase is one unknown).
+   are compared, every crib; all turns at once (the phase is one unknown). Each window is
+   simulated on its own from static equilibrium ``RUN_IN`` before it: the previous turn's
+   impact is not carried into the next window. Its wake may ring for a turn on a lightly
+   damped track, and how long it rings is what a nominal track gets wrong: on the
+   handed-over slab site (pads 27 % stiffer than the truth) the twin's contact force still
+   swung ±20 % of P just before the next window where the truth's had settled to ±10 %,
+   and drew the fit of 104-119 mm flats 10-20 % short.
 3. **Kind and length.** Each kind is run at the lengths of ``LENGTH_GRID``. A candidate's
    phase puts its event on the measured one: the impact trails the flat's centre by l/2 of
    travel plus an offset, which each run measures (the cross-correlation of its excess with
    the measured one over the windows) and which the next run of the kind interpolates
-   linearly in the length (``_Search.offset``). The cost, the sum of squared channel
-   differences over the windows, is taken on the run shifted by the measured delay, so
-   that it does not jump with a phase a fraction of a millisecond off.
+   linearly in the length (``_Search.offset``; a kind's first run takes the other kind's).
+   The cost, the sum of squared channel differences over the windows, is taken on the run
+   whose excess over the round template is shifted by the measured delay (the gauges' steps
+   stay put), so that it does not jump with a phase a fraction of a millisecond off.
 4. **Refinement and interval.** Successive parabolic steps in log length from each kind's
    best grid run (``REFINE_RUNS`` each; the other kind only if its best is within
-   ``KIND_REFINE_RATIO`` of the best); the cheaper kind wins. The length interval is where
+   ``KIND_REFINE_RATIO`` of the best), ``END_STEP`` (half a grid step) outwards where the
+   best is the longest or shortest run so far; the best run and its near neighbours are
+   run again at their aligned phase first if they were more than ``PHASE_TOLERANCE`` off
+   (``_realign``). The cheaper kind wins. The length interval is where
    the cost's parabola through the best run and its neighbours stays within the χ² bound
    J <= J_min·(1 + 3.84/(``DOF_PER_WINDOW``·windows)) (the residual is model error,
    correlated over a window). A flat that explains the windows no better than the round
@@ -54,7 +65,19 @@ LENGTH_GRID = (0.015, 0.025, 0.04, 0.065, 0.105)
 """m: the lengths tried for each kind (about 1.6 apart), before the refinement."""
 
 GRID_STEP = math.log(1.6)
-"""The grid's step in log length (the refinement's step outwards from an end)."""
+"""The grid's step in log length."""
+
+END_STEP = 0.5 * GRID_STEP
+"""The refinement's step in log length outwards from an end of the runs so far: half the
+grid's, so that a flat just beyond the grid's longest (105-130 mm) is bracketed by a run near
+it (a whole step, to 168 mm, cost 5-30x the best and drew the parabola's vertex short)."""
+
+MAX_REALIGN = 2
+"""Rounds of ``_realign`` a kind's refinement may take (each 1-3 runs, besides ``runs``)."""
+
+PHASE_TOLERANCE = 0.003
+"""m: a run whose phase was further than this off the aligned one is run again before the
+refinement steps from it or its neighbours (``_realign``)."""
 
 MIN_STEP = 0.01
 """Smallest step in log length the refinement takes (1 %: below what the data resolve)."""
@@ -86,6 +109,10 @@ ANCHOR_REACH = 0.4
 ANCHOR_LEVEL = 0.5
 """Fraction of the largest |excess| that marks the event's beginning (``anchor``)."""
 
+SPAN_MARGIN = 0.003
+"""s simulated either side of a window (``CribSite.run_spans``): the alignment's time shift
+(a millisecond or two) reads the run that far beyond the window."""
+
 MAX_SHIFT = 80
 """Samples either way over which a candidate's excess is aligned with the measured one."""
 
@@ -110,6 +137,9 @@ class Trial:
     cost: float
     peak_force: float
     run: CribRun = field(repr=False)
+    misaligned: float = 0.0
+    """m by which the run's phase was off the aligned one (its cost is taken on the run
+    shifted in time, which holds to a few mm: ``PHASE_TOLERANCE``)."""
 
 
 @dataclass(frozen=True)
@@ -119,7 +149,7 @@ class CribEstimate:
 
     ``cost_*`` are sums of squared channel differences over the ``n_samples`` compared
     (N²); ``fitted`` the best candidate's channels at the record's instants (rows per crib);
-    ``peak_force_fit`` its contact peak over the fit stretch; ``runs`` the forward runs."""
+    ``peak_force_fit`` its contact peak over the windows simulated; ``runs`` the forward runs."""
 
     flat: Flat | None
     best_kind: FlatKind | None
@@ -169,15 +199,20 @@ class _Search:
         k0 = math.floor((t[0] - t_star) / period) - 1
         k1 = math.ceil((t[-1] - t_star) / period) + 1
         windows = 0
+        spans: list[tuple[float, float]] = []
         for k in range(k0, k1 + 1):
             tk = t_star + k * period
             w = (t >= tk - WINDOW_BEFORE / speed - 0.002) & (t <= tk + WINDOW_AFTER) & inside
             if np.any(w):
                 windows += 1
                 mask |= w
+                a = speed * (tk - 0.002 - SPAN_MARGIN) - WINDOW_BEFORE
+                spans.append((a, speed * (tk + WINDOW_AFTER + SPAN_MARGIN)))
         self.mask = mask
+        self.spans = spans
         self.windows = max(windows, 1)
         self.lags: dict[FlatKind, list[tuple[float, float]]] = {}
+        self.runs = 0
         self.trials: list[Trial] = []
 
     def cost(self, chans: NDArray[np.float64]) -> float:
@@ -187,36 +222,45 @@ class _Search:
     def excess(self, chans: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.asarray(np.sum(chans - self.template, axis=0), dtype=np.float64)
 
-    def delay(self, chans: NDArray[np.float64]) -> float:
+    def delay(self, chans: NDArray[np.float64]) -> float | None:
         """s by which the simulated excess lags the measured one over the windows (the
-        cross-correlation's peak, to a fraction of a sample)."""
+        cross-correlation's peak, to a fraction of a sample). The product, not the squared
+        difference: a candidate whose impact is larger than the measured one would otherwise
+        be shifted to put its impact outside the windows (into the round template beyond a
+        run's spans, whose excess is zero), locking every later run's phase off. None
+        where the peak is at the end of the ``MAX_SHIFT`` searched (no peak: a short flat at
+        speed whose excess is lost in the noise), or the windows hold too few samples."""
         m = self.excess(self.channels)
         s = self.excess(chans)
         dt = float(self.t[1] - self.t[0])
         idx = np.flatnonzero(self.mask)
         if idx.size < 3:
-            return 0.0
+            return None
         lags = range(-MAX_SHIFT, MAX_SHIFT + 1)
         a = m[idx]
         scores = []
         for k in lags:
             j = np.clip(idx + k, 0, s.size - 1)
-            d = a - s[j]
-            scores.append(float(np.sum(d * d)))
+            scores.append(-float(np.dot(a, s[j])))
         i = int(np.argmin(scores))
+        if not 0 < i < len(scores) - 1:
+            return None
         frac = 0.0
-        if 0 < i < len(scores) - 1:
-            y0, y1, y2 = scores[i - 1], scores[i], scores[i + 1]
-            den = y0 - 2.0 * y1 + y2
-            if den > 0.0:
-                frac = 0.5 * (y0 - y2) / den
+        y0, y1, y2 = scores[i - 1], scores[i], scores[i + 1]
+        den = y0 - 2.0 * y1 + y2
+        if den > 0.0:
+            frac = 0.5 * (y0 - y2) / den
         return (lags[i] + frac) * dt
 
     def offset(self, kind: FlatKind, length: float) -> float:
         """m by which the impact trails the flat's centre beyond l/2 for this kind and
-        length: linear in the length through the two aligned runs nearest to it (the chain's
-        delay before any)."""
+        length: linear in the length through the two aligned runs nearest to it (the other
+        kind's before the kind's first run, the chain's delay before any)."""
         known = sorted(self.lags.get(kind, []), key=lambda p: abs(p[0] - length))
+        if not known:  # the other kind's impacts trail alike (within a few mm at one length)
+            known = sorted(
+                (p for ps in self.lags.values() for p in ps), key=lambda p: abs(p[0] - length)
+            )
         if not known:
             return self.speed * self._chain_delay()
         if len(known) == 1 or abs(known[0][0] - known[1][0]) < 1e-6:
@@ -233,17 +277,29 @@ class _Search:
         x_centre = V * self.t_star - 0.5 * length - offset
         phase = -x_centre / R
         try:
-            got = self.site.run(self.wheel, V, flat_of(R, kind, length, phase), self.t)
+            got = self.site.run(
+                self.wheel, V, flat_of(R, kind, length, phase), self.t, spans=self.spans
+            )
         except IntegrationError:
             return None
-        shift = self.delay(got.channels)
-        self.lags.setdefault(kind, []).append((length, offset + V * shift))
-        # the run as it would be at the aligned phase: shifted in time (a fraction of a
-        # millisecond, over which the cribs hardly move relative to the impact)
+        found = self.delay(got.channels)
+        shift = 0.0 if found is None else found
+        mine = [p for p in self.lags.get(kind, []) if abs(p[0] - length) > 1e-9]
+        if found is not None:
+            mine.append((length, offset + V * shift))
+        self.lags[kind] = mine
+        self.trials = [tr for tr in self.trials if tr.kind != kind or tr.length != length]
+        self.runs += 1
+        # the run as it would be at the aligned phase: its excess over the round template
+        # shifted in time (a fraction of a millisecond, over which the cribs hardly move
+        # relative to the impact); the gauge steps stay where the wheel crosses the gauges
         aligned = np.empty_like(got.channels)
         for i in range(aligned.shape[0]):
-            aligned[i] = np.interp(self.t + shift, self.t, got.channels[i])
-        trial = Trial(kind, length, phase + V * shift / R, self.cost(aligned), got.peak_force, got)
+            ex = got.channels[i] - self.template[i]
+            aligned[i] = self.template[i] + np.interp(self.t + shift, self.t, ex)
+        trial = Trial(
+            kind, length, phase + V * shift / R, self.cost(aligned), got.peak_force, got, V * shift
+        )
         self.trials.append(trial)
         return trial
 
@@ -290,17 +346,47 @@ def _of_kind(search: _Search, kind: FlatKind) -> list[Trial]:
     return sorted((tr for tr in search.trials if tr.kind == kind), key=lambda tr: tr.length)
 
 
+def _realign(search: _Search, kind: FlatKind, around: int) -> None:
+    """Run again, at their aligned phase, the kind's runs at ``around`` and either side of
+    it (sorted by length) whose phase was more than ``PHASE_TOLERANCE`` off: a kind's first
+    run has only the chain's delay to go by, and one far from the lengths run before it only
+    an extrapolation, and their costs, taken on a run shifted by a millisecond or more, stand
+    too high (a 15 mm run 38 mm off, a 168 mm one 0.3 m: the alignment locked on to another
+    feature)."""
+    for tr in _misaligned(search, kind, around):
+        search.run(kind, tr.length)
+
+
+def _misaligned(search: _Search, kind: FlatKind, around: int) -> list[Trial]:
+    """The runs ``_realign`` would run again: the kind's run at ``around`` and those either
+    side of it whose phase was off (a 14 mm misalignment put a 105 mm run at 4x its aligned
+    cost)."""
+    mine = _of_kind(search, kind)
+    return [
+        mine[k]
+        for k in range(max(around - 1, 0), min(around + 2, len(mine)))
+        if abs(mine[k].misaligned) > PHASE_TOLERANCE
+    ]
+
+
 def _refine(search: _Search, kind: FlatKind, runs: int) -> Trial:
     """Successive parabolic steps in log length from the kind's best run (golden steps where
-    the parabola is not convex, a grid step outwards at the ends); the best run after."""
-    for _ in range(runs):
+    the parabola is not convex, ``END_STEP`` outwards at the ends of the runs so far); runs
+    around the best whose phase was off are run again first (``_realign``, up to
+    ``MAX_REALIGN`` rounds besides ``runs``); the best run after."""
+    done = realigned = 0
+    while done < runs:
         mine = _of_kind(search, kind)
         i = min(range(len(mine)), key=lambda k: mine[k].cost)
+        if realigned < MAX_REALIGN and _misaligned(search, kind, i):
+            realigned += 1
+            _realign(search, kind, i)
+            continue
         u = [math.log(tr.length) for tr in mine]
         if i == 0:
-            nxt = u[0] - GRID_STEP
+            nxt = u[0] - END_STEP
         elif i == len(mine) - 1:
-            nxt = u[-1] + GRID_STEP
+            nxt = u[-1] + END_STEP
         else:
             par = _parabola([(u[k], mine[k].cost) for k in (i - 1, i, i + 1)])
             far = i - 1 if u[i] - u[i - 1] > u[i + 1] - u[i] else i + 1
@@ -312,6 +398,7 @@ def _refine(search: _Search, kind: FlatKind, runs: int) -> Trial:
         if not lo <= nxt <= hi or min(abs(nxt - x) for x in u) < MIN_STEP:
             break
         search.run(kind, math.exp(nxt))
+        done += 1
     return min(_of_kind(search, kind), key=lambda tr: tr.cost)
 
 
@@ -413,7 +500,7 @@ def fit_channels(
             search.windows,
             sc.noise,
             sc,
-            len(search.trials),
+            search.runs,
             template,
             wheel.load,
             speed=speed,
@@ -429,7 +516,7 @@ def fit_channels(
         search.windows,
         sc.noise,
         sc,
-        len(search.trials),
+        search.runs,
         final.run.channels,
         final.peak_force,
         tuple((tr.kind, tr.length, tr.cost) for tr in search.trials),

@@ -42,12 +42,14 @@ from sim_core.diagnosis.sensor import SensorModel
 from sim_core.track.spec import Crib
 
 __all__ = [
+    "ROUGH_RAIL_LOAD_AT_REF",
     "ROUND_ALLOWANCE_AT_REF",
     "ROUND_ALLOWANCE_STATIC",
     "SCREEN_SIGMAS",
     "Screen",
     "channel_noise",
     "excess",
+    "rough_rail_load",
     "round_allowance",
     "round_template",
     "screen",
@@ -70,6 +72,11 @@ physics' upper bound of ~20 % of P at 150 km/h from 10 µm of rail roughness, wi
 
 ALLOWANCE_REF_SPEED = 41.7
 """m/s (150 km/h) at which ``ROUND_ALLOWANCE_AT_REF`` holds."""
+
+ROUGH_RAIL_LOAD_AT_REF = 0.20
+"""Fraction of P a rail's roughness may add to or take from a wheel's load at
+``ALLOWANCE_REF_SPEED``: the physics' bound of ~20 % of P at 150 km/h from 10 µm of
+roughness (``ROUND_ALLOWANCE_AT_REF`` without its margin)."""
 
 TEMPLATE_RATE = 200_000.0
 """Hz at which the template's steps are filtered before sampling at the record's instants."""
@@ -122,6 +129,12 @@ def round_allowance(speed: float, load: float) -> float:
     return load * (
         ROUND_ALLOWANCE_STATIC + ROUND_ALLOWANCE_AT_REF * (speed / ALLOWANCE_REF_SPEED) ** 2
     )
+
+
+def rough_rail_load(speed: float, load: float) -> float:
+    """N: how far the rail's roughness, which the twin's even rail leaves out, may move a
+    wheel's load at ``speed`` either way (``ROUGH_RAIL_LOAD_AT_REF``, as V²)."""
+    return load * ROUGH_RAIL_LOAD_AT_REF * (speed / ALLOWANCE_REF_SPEED) ** 2
 
 
 def excess(
