@@ -56,8 +56,9 @@ def test_off_writes_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> 
 def test_the_cache_is_bounded_least_recently_used_first(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    """At its bound the cache drops the entry read longest ago, and earlier formats first;
-    the entry just written always stays."""
+    """At its bound the cache drops the entry read longest ago (a read touches it), and
+    earlier formats' entries first; the entry just written always stays, and a file the cache
+    did not write is never touched."""
     import os
 
     monkeypatch.setenv("RAILTWIN_TRACK_CACHE", str(tmp_path))
@@ -65,23 +66,55 @@ def test_the_cache_is_bounded_least_recently_used_first(
     arrays = {"a": np.zeros(1000)}
     store.save("one", arrays)
     store.save("two", arrays)
-    legacy = tmp_path / "old.npz"
+    legacy = tmp_path / f"{'0' * store.KEY_LENGTH}.npz"  # an earlier format's entry
     legacy.write_bytes(b"x" * 100)
+    foreign = tmp_path / "mine.npz"  # the user's own file in the directory
+    foreign.write_bytes(b"y" * 100)
     size = (tmp_path / f"one{store.SUFFIX}").stat().st_size
-    # "one" read after "two" was written: "two" is the least recently used
-    os.utime(tmp_path / f"one{store.SUFFIX}", (1000.0, 1000.0))
-    os.utime(tmp_path / f"two{store.SUFFIX}", (900.0, 900.0))
+    # "one" written before "two", then read: "two" is now the least recently used
+    os.utime(tmp_path / f"one{store.SUFFIX}", (900.0, 900.0))
+    os.utime(tmp_path / f"two{store.SUFFIX}", (1000.0, 1000.0))
     assert store.load("one") is not None  # touches it
-    # room for exactly two entries: writing a third evicts the legacy file and "two"
-    monkeypatch.setenv("RAILTWIN_TRACK_CACHE_MAX_MB", str(2 * size / 1024 / 1024))
+    # room for two entries and the legacy file: the least recently used alone would leave
+    # the legacy file; it goes first, then "two"
+    monkeypatch.setenv("RAILTWIN_TRACK_CACHE_MAX_MB", str((2 * size + 100) / 1024 / 1024))
     store.save("three", arrays)
     names = sorted(p.name for p in tmp_path.iterdir())
-    assert names == [f"one{store.SUFFIX}", f"three{store.SUFFIX}"]
+    assert names == ["mine.npz", f"one{store.SUFFIX}", f"three{store.SUFFIX}"]
     # exactly at the bound nothing more goes; a bound of 0 keeps only the entry just written
+    monkeypatch.setenv("RAILTWIN_TRACK_CACHE_MAX_MB", str(2 * size / 1024 / 1024))
     assert store.evict(tmp_path) == 0
     monkeypatch.setenv("RAILTWIN_TRACK_CACHE_MAX_MB", "0")
     store.save("four", arrays)
-    assert [p.name for p in tmp_path.iterdir()] == [f"four{store.SUFFIX}"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == [f"four{store.SUFFIX}", "mine.npz"]
     # an unreadable bound is the default, never an error
     monkeypatch.setenv("RAILTWIN_TRACK_CACHE_MAX_MB", "lots")
     assert store.max_bytes() == store.MAX_MB * 1024 * 1024
+
+
+def test_workers_evicting_at_once_delete_no_more_than_needed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """An entry another worker deleted between this one's scan and its unlink counts as gone:
+    one entry over the bound costs one entry, not one a worker."""
+    import os
+
+    monkeypatch.setenv("RAILTWIN_TRACK_CACHE", str(tmp_path))
+    monkeypatch.delenv("RAILTWIN_TRACK_CACHE_MAX_MB", raising=False)
+    for i in range(5):
+        store.save(f"e{i}", {"a": np.zeros(1000)})
+        os.utime(tmp_path / f"e{i}{store.SUFFIX}", (1000.0 + i, 1000.0 + i))
+    size = (tmp_path / f"e0{store.SUFFIX}").stat().st_size
+    monkeypatch.setenv("RAILTWIN_TRACK_CACHE_MAX_MB", str(4 * size / 1024 / 1024))
+    unlink = os.unlink
+
+    def raced(path: str | os.PathLike[str]) -> None:
+        unlink(path)  # the other worker got there first
+        raise FileNotFoundError(path)
+
+    monkeypatch.setattr(os, "unlink", raced)
+    assert store.evict(tmp_path) == 0  # this worker deleted nothing itself
+    monkeypatch.setattr(os, "unlink", unlink)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        f"e{i}{store.SUFFIX}" for i in range(1, 5)
+    ]

@@ -49,7 +49,12 @@ MAX_MB = 2048
 reductions of ~3 MB."""
 
 LEGACY_SUFFIXES = (".npz",)
-"""Entries of earlier formats, never read again: counted against the bound, and evicted first."""
+"""Entries of earlier formats, never read again: counted against the bound, and evicted first.
+Only a file named as the cache names its entries (a key, ``KEY_LENGTH`` hex digits) is one: a
+directory ``RAILTWIN_TRACK_CACHE`` names may hold ``.npz`` files of the user's own."""
+
+KEY_LENGTH = 40
+"""Hex digits of a key (``key``): the stem of every entry the cache writes."""
 
 MAGIC = b"RTTRACK1"
 ALIGN = 64
@@ -57,7 +62,16 @@ ALIGN = 64
 
 def key(inputs: Any) -> str:
     """The entry's name: a SHA-256 of the inputs' ``repr`` and ``FORMAT``."""
-    return hashlib.sha256(repr((FORMAT, inputs)).encode()).hexdigest()[:40]
+    return hashlib.sha256(repr((FORMAT, inputs)).encode()).hexdigest()[:KEY_LENGTH]
+
+
+def _legacy(fname: str) -> bool:
+    """Whether ``fname`` is an entry of an earlier format (``LEGACY_SUFFIXES``, a key's name)."""
+    for suffix in LEGACY_SUFFIXES:
+        stem = fname[: -len(suffix)]
+        if fname.endswith(suffix) and len(stem) == KEY_LENGTH:
+            return all(c in "0123456789abcdef" for c in stem)
+    return False
 
 
 def directory() -> Path | None:
@@ -107,15 +121,24 @@ def max_bytes() -> int:
 
 def evict(d: Path, keep: str = "") -> int:
     """Delete entries of ``d`` until they fit ``max_bytes()``: earlier formats first, then the
-    least recently used, never ``keep`` (a file name). Returns how many were deleted."""
+    least recently used, never ``keep`` (a file name). Returns how many this call deleted.
+
+    Workers may evict at once: an entry another one deleted meanwhile (between the scan and
+    the unlink, or while it was scanned) counts as gone, so that they do not delete the next
+    entries in its place."""
     entries = []
     try:
         with os.scandir(d) as it:
             for e in it:
-                legacy = e.name.endswith(LEGACY_SUFFIXES)
-                if not (e.name.endswith(SUFFIX) or legacy) or not e.is_file():
+                legacy = _legacy(e.name)
+                if not (e.name.endswith(SUFFIX) or legacy):
                     continue
-                st = e.stat()
+                try:
+                    if not e.is_file():
+                        continue
+                    st = e.stat()
+                except OSError:  # deleted by another worker since the listing
+                    continue
                 entries.append((not legacy, st.st_mtime, e.name, st.st_size))
     except OSError:
         return 0
@@ -127,10 +150,14 @@ def evict(d: Path, keep: str = "") -> int:
             break
         if fname == keep:
             continue
-        with contextlib.suppress(OSError):
+        try:
             os.unlink(d / fname)
-            total -= size
             deleted += 1
+        except FileNotFoundError:
+            pass  # another worker evicted it meanwhile: gone all the same
+        except OSError:
+            continue
+        total -= size
     return deleted
 
 
