@@ -99,7 +99,7 @@ soak: $(WARMED)
 
 validate: $(WARMED)
 	nice -n 5 $(BIN)/python -m validation.diagnosis_validation
-	nice -n 5 $(BIN)/python -m validation.detector_sites
+	nice -n 5 $(BIN)/python -m validation.detector_sites --calibrate
 
 validate-track: $(WARMED)
 	nice -n 5 $(BIN)/python -m validation.track_validation --out validation/track_results.md

@@ -6,12 +6,15 @@ there), each site's railtwin site file with the NOMINAL track, and the line-spee
 Each passage goes through the path of ``railtwin diagnose``: its ``WheelPassage`` and its
 channel CSV read by ``read_measured``, ``Diagnoser.diagnose`` on one core.
 
-    .venv/bin/python -m validation.detector_sites [--calibrated DIR]
+    .venv/bin/python -m validation.detector_sites [--calibrate | --calibrated DIR]
         [--out validation/detector_sites_results.json] [--md validation/detector_sites_results.md]
 
-``--calibrated DIR``: also diagnose with the calibrated site files ``DIR/Sxx.site.toml``
-(``railtwin calibrate``'s output), to show what the calibration buys. Prints the table of
-the issue's targets per site file set (also to ``--md``), and writes every case to ``--out``.
+``--calibrate`` (what ``make validate`` runs): first calibrate each site with ``railtwin
+calibrate`` from its 12 round calibration wheels (P01-P12, copied beside the test passages),
+then also diagnose with those calibrated site files, to show what the calibration buys;
+``--calibrated DIR`` takes calibrated site files ``DIR/Sxx.site.toml`` made elsewhere. Prints
+the table of the issue's targets per site file set (also to ``--md``), and writes every case
+to ``--out``.
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ from __future__ import annotations
 import argparse
 import gzip
 import json
+import subprocess
 import sys
 import tempfile
 import time
@@ -204,17 +208,122 @@ def table(sets: dict[str, list[dict[str, Any]]]) -> str:
     return "\n".join(out)
 
 
+CALIBRATION_WHEELS = tuple(f"P{i:02d}" for i in range(1, 13))
+
+
+def calibrate_site(site_id: str, scratch: Path) -> tuple[Path, dict[str, Any]]:
+    """``railtwin calibrate`` on the site's 12 round wheels, as a user runs it: the pairs
+    NAME.json (WheelPassage) and NAME.csv written to a directory, the command in a child
+    process. Returns the calibrated site file and the command's JSON report (with its wall
+    and CPU seconds)."""
+    wheels = scratch / "wheels" / site_id
+    wheels.mkdir(parents=True, exist_ok=True)
+    for p in CALIBRATION_WHEELS:
+        doc = json.loads((DATA / f"{site_id}_{p}.json").read_text())
+        (wheels / f"{site_id}_{p}.json").write_text(wheel_passage(doc).model_dump_json())
+        with gzip.open(DATA / f"{site_id}_{p}.csv.gz", "rb") as f:
+            (wheels / f"{site_id}_{p}.csv").write_bytes(f.read())
+    out = scratch / "calibrated" / f"{site_id}.site.toml"
+    out.parent.mkdir(parents=True, exist_ok=True)
+    cmd = [sys.executable, "-m", "service.cli", "calibrate", "--site"]
+    cmd += [str(DATA / f"{site_id}.site.toml"), str(wheels), "--out", str(out), "--json", "-q"]
+    t0 = time.perf_counter()
+    before = _children_cpu()
+    done = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    if done.returncode != 0:
+        raise SystemExit(f"railtwin calibrate failed on {site_id}: {done.stderr.strip()}")
+    report: dict[str, Any] = json.loads(done.stdout)
+    report["validation_wall_s"] = time.perf_counter() - t0
+    report["validation_cpu_s"] = _children_cpu() - before
+    return out, report
+
+
+TRUTH_KEYS = {
+    "pad.stiffness": "k_p",
+    "pad.damping": "c_p",
+    "sleeper_mass": "m_s",
+    "ballast.stiffness": "k_b",
+    "ballast.damping": "c_b",
+}
+"""The calibrated parameters' names in the data set's ``truth.track_true``."""
+
+
+def calibration_table(reports: dict[str, dict[str, Any]]) -> str:
+    """Markdown: each site's estimates against the data set's true track, with the command's
+    time and how well the calibrated channels explain the wheels."""
+    out = [
+        "### `railtwin calibrate` from each site's 12 round wheels, against the true track",
+        "",
+        "| site | parameter | nominal / truth | estimate / truth | 95 % interval / truth "
+        "| covers | identifiable |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    covers = 0
+    counted = 0
+    for site_id, rep in reports.items():
+        true = json.loads((DATA / f"{site_id}_P13.json").read_text())["truth"]["track_true"]
+        for prm in rep["parameters"]:
+            t = float(true[TRUTH_KEYS[prm["name"]]])
+            inside = prm["low"] <= t <= prm["high"]
+            if prm["identifiable"] != "no":
+                counted += 1
+                covers += inside
+            out.append(
+                f"| {site_id} | {prm['name']} | {prm['nominal'] / t:.3f} | "
+                f"{prm['estimate'] / t:.3f} | [{prm['low'] / t:.3f}, {prm['high'] / t:.3f}] | "
+                f"{'yes' if inside else 'no'} | {prm['identifiable']} |"
+            )
+    out.append("")
+    out.append(
+        f"Intervals covering the truth, parameters the wheels determine (`yes`/`partly`): "
+        f"{covers}/{counted}. Parameters marked `no` are held at the nominal with the prior's "
+        "interval."
+    )
+    out.append("")
+    out.append(
+        "| site | CPU (s) | wall (s) | residual rms / noise, worst wheel: nominal → calibrated |"
+    )
+    out.append("|---|---|---|---|")
+    for site_id, rep in reports.items():
+        nom = max(p["rms_over_sigma_nominal"] for p in rep["passages"])
+        cal = max(p["rms_over_sigma_calibrated"] for p in rep["passages"])
+        out.append(
+            f"| {site_id} | {rep['validation_cpu_s']:.1f} | {rep['validation_wall_s']:.1f} | "
+            f"{nom:.2f} → {cal:.2f} |"
+        )
+    return "\n".join(out)
+
+
+def _children_cpu() -> float:
+    import os
+
+    t = os.times()
+    return float(t.children_user + t.children_system)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument(
+        "--calibrate",
+        action="store_true",
+        help="calibrate each site from its 12 round wheels first, and diagnose with those files too",
+    )
     ap.add_argument("--calibrated", type=Path, default=None, help="calibrated site files")
     ap.add_argument("--sites", nargs="+", default=list(SITES))
     ap.add_argument("--out", type=Path, default=Path("validation/detector_sites_results.json"))
     ap.add_argument("--md", type=Path, default=Path("validation/detector_sites_results.md"))
     args = ap.parse_args(argv)
     sets: dict[str, list[dict[str, Any]]] = {}
+    calibrations: dict[str, dict[str, Any]] = {}
     with tempfile.TemporaryDirectory() as tmp:
         scratch = Path(tmp)
-        for name, folder in (("nominal", DATA), ("calibrated", args.calibrated)):
+        calibrated = args.calibrated
+        if args.calibrate:
+            for s in args.sites:
+                print(f"railtwin calibrate {s} (12 round wheels) ...", file=sys.stderr, flush=True)
+                site_file, calibrations[s] = calibrate_site(s, scratch)
+            calibrated = site_file.parent
+        for name, folder in (("nominal", DATA), ("calibrated", calibrated)):
             if folder is None:
                 continue
             print(f"{name} site files ({folder}):", file=sys.stderr)
@@ -222,8 +331,10 @@ def main(argv: list[str] | None = None) -> int:
             for s in args.sites:
                 rows += run_site(folder / f"{s}.site.toml", s, scratch)
             sets[name] = rows
-    args.out.write_text(json.dumps(sets, indent=1) + "\n")
+    args.out.write_text(json.dumps(sets | {"calibrations": calibrations}, indent=1) + "\n")
     text = "## Detector sites (track-sites): the diagnosis from crib channels\n\n" + table(sets)
+    if calibrations:
+        text += "\n\n" + calibration_table(calibrations)
     args.md.write_text(text + "\n")
     print(text)
     return 0
