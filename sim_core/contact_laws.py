@@ -64,7 +64,9 @@ with ε = 1e-7 it crossed the switch 386 times a wheel, with ε = 3e-5 8 times.
 
 SWITCH_FLOOR = 1e-14
 """Least half-width (m) of the switch, whatever ε: the state is put 1e-15 m past a
-switching surface after an event, and the step's own error is ~1e-14 m (MODEL.md §5)."""
+switching surface after an event, and the step's own error is ~1e-14 m (MODEL.md §5; on a
+discrete or slab track ~1e-10 m, the modes being single precision: ``sim_core.track.stepper``,
+where a yield placed within that of a peak gives one yield/unyield pair or none)."""
 
 
 class ContactLaw(IntEnum):

@@ -59,10 +59,21 @@ MODE_DTYPE = np.float32
 """The modes' state, rows and step coefficients are kept and advanced in single precision; the
 wheel, the contact, the constraint and the residual stay in double. The loop over the modes is
 the stepper's whole cost and is bound by its arithmetic: in single precision it runs ~2.2x faster
-(twice the lanes a vector instruction). A mode's rounding is 6e-8 of its amplitude a step, and a
-mode forgets it within its decay time: on the site case every output stays within ~1e-5 of P of
-a double-precision run (``tests/test_track_precision.py``), against the 2 % of P its
-validation allows."""
+(twice the lanes a vector instruction).
+
+What it costs: a mode's state is rounded to 6e-8 of itself every step, and a slow mode whose
+change in one step, |λτ| of its distance from equilibrium, falls below that rounding stops
+short of its equilibrium by ~6e-8/|λτ| of its amplitude. The error therefore grows as the step
+shortens (measured against a double-precision run, force and channels, of P): 2-4e-6 at the
+usual 20 µs, 1-2e-5 at 2 µs (a plastic law's dent spacing at 45 m/s), 0.4-1e-4 at 0.5 µs,
+3-7e-4 at 0.1 µs, which no passage takes (the step is bounded below by the rail table's
+resolution and the dent spacing over the speed). ``tests/test_track_precision.py`` holds 20 and
+0.5 µs; the track's validation allows 2 % of P."""
+
+EVENT_TOLERANCE = 1e-7
+"""An event is located to this fraction of the longest step (2e-12 s at 20 µs). Finer is noise:
+the single-precision deflection's rounding (~4e-11 m) makes the event function flat below
+~1e-10 s, and a finer bracket only costs iterations (one exponential per mode each)."""
 
 SERIES_LIMIT = 1e-3
 """Below this |λτ| the φ functions are summed as series (their closed forms cancel)."""
@@ -511,6 +522,7 @@ def run(
     peak_d = delta_a if contact else 0.0
     t_flight = 0.0
     tol_t = 1e-14 * max(1.0, abs(t0) + abs(sample_t[-1]))
+    tol_event = max(tol_t, EVENT_TOLERANCE * h_max)
     while i_samp < ns:
         target = sample_t[i_samp]
         while i_stop < stops.size and stops[i_stop] <= t + tol_t:
@@ -595,9 +607,9 @@ def run(
                             if side == -1:
                                 g_hi *= 0.5
                             side = -1
-                        if hi - lo <= tol_t:
+                        if hi - lo <= tol_event:
                             break
-                    st = hi
+                    st = hi  # the event's far side: the step ends where it has happened
                     coefficients(md, st, co_t)
                     dstar, kappa, ypred, he, ht = trial(
                         md, tab, wh, co_t, lr, li, sc, t, st, y, v, fa, he, ht
