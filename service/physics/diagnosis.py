@@ -20,6 +20,7 @@ import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from typing import Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -74,6 +75,21 @@ LINE_DAMPING_BAND = 0.5
 
 LINE_DAMPING_FLOOR = 0.02
 """Added to the band's upper damping ratio (a fit at ζ = 0 still has a band)."""
+
+
+UNSIMULATED_REASON = (
+    "the line-speed forecast could not be simulated (the integrator did not resolve it): the "
+    "verdict stands on the measured peaks and the length"
+)
+
+
+class _Fit(NamedTuple):
+    """How well a fit explains its record: the verdict's ``_judge`` reads it."""
+
+    explained: bool
+    rms: float
+    noise: float
+    ratio: float
 
 
 @dataclass(frozen=True)
@@ -359,46 +375,22 @@ class Diagnoser:
                 depth_factor=est.depth_factor,
             )
         peak_measured = float(np.max(f))
-        if explained:
-            level, reasons = verdict(
-                self.limits,
-                peak_measured,
-                at_line if at_line is not None else line_high,  # the point lost: the band's top
-                flat.length if flat is not None else None,
-                cfg.line_speed,
-                est.length_high if flat is not None else None,
-            )
-        else:
-            # the fit does not explain the record: judge the wheel by what was measured and by
-            # the worst the interval allows (a flat is certainly there when the record stands
-            # this far above its noise, but not the fitted one)
-            worst_len = est.length_high if flat is not None else None
-            level, reasons = verdict(
-                self.limits, peak_measured, line_high, worst_len, cfg.line_speed
-            )
-            basis = (
-                "the measured peaks, the upper end of the length interval and of the "
-                "line-speed forecast"
-                if flat is not None
-                else "the measured peaks"
-            )
-            reasons.insert(
-                0,
-                f"the fit does not explain the measurement (residual "
-                f"{est.fit_rms / 1e3:.1f} kN rms = {ratio:.1f} x the record's noise "
-                f"{noise / 1e3:.2f} kN > {EXPLAINED_RATIO:g}): verdict from "
-                f"{basis}",
-            )
+        level, reasons = self._judge(
+            "measurement",
+            peak_measured,
+            flat.length if flat is not None else None,
+            est.length_high if flat is not None else None,
+            at_line,
+            line_high,
+            _Fit(explained, est.fit_rms, noise, ratio),
+        )
         if refit_failed:
             reasons.append(
                 "the fitted wheel could not be re-simulated over the record (the integrator "
                 "did not resolve it): peak_force_fit is the static load"
             )
         if unsimulated:
-            reasons.append(
-                "the line-speed forecast could not be simulated (the integrator did not "
-                "resolve it): the verdict stands on the measured peaks and the length"
-            )
+            reasons.append(UNSIMULATED_REASON)
         impacts = (
             flat_times(passage.radius, est.speed, flat.phase, float(t[0]), float(t[-1]))
             if flat is not None
@@ -426,6 +418,44 @@ class Diagnoser:
         )
         return diag, FitCurves(t, t * est.speed, f, fitted, impacts, est)
 
+    def _judge(
+        self,
+        what: Literal["measurement", "channels"],
+        peak_measured: float,
+        length: float | None,
+        length_high: float | None,
+        at_line: float | None,
+        line_high: float | None,
+        fit: _Fit,
+    ) -> tuple[str, list[str]]:
+        """The verdict and its reasons, the same whatever was measured: from the fitted flat
+        and the forecast where the fit explains the record; else from the measured peaks and
+        the upper ends of the length interval and of the forecast's band (a flat is certainly
+        there when the record stands this far above its noise, but not the fitted one)."""
+        cfg = self.site.diagnosis
+        if fit.explained:
+            return verdict(
+                self.limits,
+                peak_measured,
+                at_line if at_line is not None else line_high,  # the point lost: the band's top
+                length,
+                cfg.line_speed,
+                length_high,
+            )
+        level, reasons = verdict(self.limits, peak_measured, line_high, length_high, cfg.line_speed)
+        basis = "the measured peaks" + (
+            ", the upper end of the length interval and of the line-speed forecast"
+            if length is not None
+            else ""
+        )
+        reasons.insert(
+            0,
+            f"the fit does not explain the {what} (residual {fit.rms / 1e3:.1f} kN rms = "
+            f"{fit.ratio:.1f} x the record's noise {fit.noise / 1e3:.2f} kN > "
+            f"{EXPLAINED_RATIO:g}): verdict from {basis}",
+        )
+        return level, reasons
+
     def _diagnose_channels(
         self, passage: WheelPassage, measured: MeasuredPassage, start: float
     ) -> tuple[Diagnosis, FitCurves]:
@@ -452,36 +482,17 @@ class Diagnoser:
             unsimulated = line[0] is None
         at_line, line_low, line_high, ch_line, ch_low, ch_high = line
         peak_measured = float(np.max(chans))
-        worst_len = est.length_high if flat is not None else None
-        if explained:
-            level, reasons = verdict(
-                self.limits,
-                peak_measured,
-                at_line if at_line is not None else line_high,
-                flat.length if flat is not None else None,
-                cfg.line_speed,
-                worst_len,
-            )
-        else:
-            level, reasons = verdict(
-                self.limits, peak_measured, line_high, worst_len, cfg.line_speed
-            )
-            reasons.insert(
-                0,
-                f"the fit does not explain the channels (residual {est.fit_rms / 1e3:.1f} kN "
-                f"rms = {ratio:.1f} x the record's noise {noise / 1e3:.2f} kN > "
-                f"{EXPLAINED_RATIO:g}): verdict from the measured peaks"
-                + (
-                    ", the upper end of the length interval and of the line-speed forecast"
-                    if flat is not None
-                    else ""
-                ),
-            )
+        level, reasons = self._judge(
+            "channels",
+            peak_measured,
+            flat.length if flat is not None else None,
+            est.length_high if flat is not None else None,
+            at_line,
+            line_high,
+            _Fit(explained, est.fit_rms, noise, ratio),
+        )
         if unsimulated:
-            reasons.append(
-                "the line-speed forecast could not be simulated (the integrator did not "
-                "resolve it): the verdict stands on the measured peaks and the length"
-            )
+            reasons.append(UNSIMULATED_REASON)
         finding = None
         if flat is not None:
             finding = FlatFinding(
