@@ -109,3 +109,31 @@ def test_a_worn_flat_longer_than_the_grid_is_found(
     assert est.flat is not None and est.best_kind == "rounded_flat"
     assert est.flat.length == pytest.approx(length, rel=0.1)
     assert est.length_low <= length <= est.length_high
+
+
+def test_a_flat_cost_gives_the_search_range_not_an_extrapolation() -> None:
+    """A record a flat barely changes (the demo's axle 13: a measured outline the haversine
+    does not fit, costs within 0.03 % over 7-12 mm) gives a parabola so shallow that its χ²
+    bound lay at 1 µm and 104 m: the interval is clipped to the lengths the search may try."""
+    from types import SimpleNamespace
+
+    from sim_core.diagnosis.crib_fit import LENGTH_RANGE, Trial, _interval
+
+    costs = {0.0074: 6.48979e10, 0.0094: 6.49057e10, 0.0106: 6.47606e10, 0.0119: 6.47791e10}
+    costs |= {0.015: 6.56583e10, 0.025: 8.59230e10, 0.04: 1.25633e11, 0.065: 1.77267e11}
+    trials = [
+        Trial("rounded_flat", length, 0.0, cost, 0.0, None)  # type: ignore[arg-type]
+        for length, cost in costs.items()
+    ]
+    best = trials[2]
+    search = SimpleNamespace(trials=trials, windows=2)
+    low, high = _interval(search, "rounded_flat", best)  # type: ignore[arg-type]
+    assert (low, high) == LENGTH_RANGE
+    # a well-curved cost keeps its own interval, inside the range
+    curved = [
+        Trial("flat", length, 0.0, 1e9 * (1.0 + 50.0 * np.log(length / 0.04) ** 2), 0.0, None)  # type: ignore[arg-type]
+        for length in (0.025, 0.04, 0.065)
+    ]
+    low, high = _interval(SimpleNamespace(trials=curved, windows=2), "flat", curved[1])  # type: ignore[arg-type]
+    assert LENGTH_RANGE[0] < low < 0.04 < high < LENGTH_RANGE[1]
+    assert high / 0.04 == pytest.approx(0.04 / low, rel=1e-9)

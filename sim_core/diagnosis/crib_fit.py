@@ -404,19 +404,24 @@ def _refine(search: _Search, kind: FlatKind, runs: int) -> Trial:
 
 def _interval(search: _Search, kind: FlatKind, best: Trial) -> tuple[float, float]:
     """The lengths where the cost's parabola through the best run and its nearest runs either
-    side (log length) stays within the χ² bound; without one, the span of runs within it."""
+    side (log length) stays within the χ² bound; without one, the span of runs within it.
+    Either is clipped to the lengths the search may try (``LENGTH_RANGE``): a cost nearly flat
+    in the length (a record the flat barely changes) gives a parabola so shallow that its
+    bound lay at 1 µm and 104 m, where the data say only "somewhere in the range"."""
     bound = 1.0 + 3.84 / (DOF_PER_WINDOW * search.windows)
     mine = _of_kind(search, kind)
     i = mine.index(best)
+    lo, hi = LENGTH_RANGE
     if 0 < i < len(mine) - 1:
         pts = [(math.log(mine[k].length), mine[k].cost) for k in (i - 1, i, i + 1)]
         par = _parabola(pts)
         if par is not None:
             a, u0, j0 = par
             half = math.sqrt(max(best.cost * bound - j0, 0.0) / a)
-            return min(math.exp(u0 - half), best.length), max(math.exp(u0 + half), best.length)
+            low = max(min(math.exp(u0 - half), best.length), lo)
+            return min(low, best.length), min(max(math.exp(u0 + half), best.length), hi)
     ok = [tr.length for tr in mine if tr.cost <= best.cost * bound]
-    return min(ok), max(ok)
+    return max(min(ok), min(lo, best.length)), min(max(ok), max(hi, best.length))
 
 
 def fit_channels(
