@@ -118,3 +118,22 @@ def test_workers_evicting_at_once_delete_no_more_than_needed(
     assert sorted(p.name for p in tmp_path.iterdir()) == [
         f"e{i}{store.SUFFIX}" for i in range(1, 5)
     ]
+
+
+def test_a_crashed_writers_file_is_cleaned_when_stale(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A ``.tmp`` left by a writer that died before its rename goes at the next eviction once
+    older than ``STALE_TMP_S``; a fresh one (a writer at work) stays."""
+    import os
+
+    monkeypatch.setenv("RAILTWIN_TRACK_CACHE", str(tmp_path))
+    stale = tmp_path / "abc.tmp"
+    fresh = tmp_path / "def.tmp"
+    stale.write_bytes(b"x")
+    fresh.write_bytes(b"y")
+    old = stale.stat().st_mtime - store.STALE_TMP_S - 10.0
+    os.utime(stale, (old, old))
+    store.save("k" * 40, {"a": np.zeros(4)})
+    assert not stale.exists()
+    assert fresh.exists()

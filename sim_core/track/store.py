@@ -11,7 +11,8 @@ damaged (CRC-32 of the payload) or foreign entry is ignored and replaced.
 
 The directory is bounded: after each write, entries beyond ``RAILTWIN_TRACK_CACHE_MAX_MB``
 (``MAX_MB`` by default) are deleted, the least recently used first (a read touches its
-entry's mtime), never the one just written. A calibrating twin reduces a new track for each
+entry's mtime), never the one just written; a writer's temporary file left over an hour
+(a writer that died before its rename) goes too. A calibrating twin reduces a new track for each
 step of its estimate, and an unbounded cache would fill the disk.
 
 The file is ``MAGIC``, the length of a JSON header (8 bytes, little-endian), the header
@@ -32,6 +33,7 @@ import hashlib
 import json
 import os
 import tempfile
+import time
 import zlib
 from pathlib import Path
 from typing import Any
@@ -47,6 +49,10 @@ SUFFIX = ".track"
 MAX_MB = 2048
 """The cache's default bound, MB (``RAILTWIN_TRACK_CACHE_MAX_MB`` overrides it): ~700 site-case
 reductions of ~3 MB."""
+
+STALE_TMP_S = 3600.0
+"""A writer's temporary file older than this (s) was left by a writer that died before its
+rename (a whole entry is written in well under a second): the next eviction deletes it."""
 
 LEGACY_SUFFIXES = (".npz",)
 """Entries of earlier formats, never read again: counted against the bound, and evicted first.
@@ -127,9 +133,15 @@ def evict(d: Path, keep: str = "") -> int:
     the unlink, or while it was scanned) counts as gone, so that they do not delete the next
     entries in its place."""
     entries = []
+    now = time.time()
     try:
         with os.scandir(d) as it:
             for e in it:
+                if e.name.endswith(".tmp"):  # a writer's file aside: stale if it crashed
+                    with contextlib.suppress(OSError):
+                        if now - e.stat().st_mtime > STALE_TMP_S:
+                            os.unlink(e.path)
+                    continue
                 legacy = _legacy(e.name)
                 if not (e.name.endswith(SUFFIX) or legacy):
                     continue
