@@ -213,49 +213,6 @@ def residual(e: int, xi: float, n: NDArray[np.float64], md: Modes) -> float:
 
 
 @_kernel
-def _predict_within(
-    e: int,
-    na: NDArray[np.float64],
-    n: NDArray[np.float64],
-    md: Modes,
-    co: NDArray[np.float64],
-    lr: NDArray[np.float64],
-    li: NDArray[np.float64],
-    sc: State,
-    fa: float,
-) -> tuple[float, float]:
-    """``predict`` for a step that starts and ends in one element (all but ~1 step in 50): one
-    set of rows read, the start's load and the end's deflection both from it."""
-    d = 2 * e
-    r0, r1, r2, r3 = md.row_r[d], md.row_r[d + 1], md.row_r[d + 2], md.row_r[d + 3]
-    i0, i1, i2, i3 = md.row_i[d], md.row_i[d + 1], md.row_i[d + 2], md.row_i[d + 3]
-    ft = sc.zr.dtype.type
-    m0, m1, m2, m3 = ft(na[0] * fa), ft(na[1] * fa), ft(na[2] * fa), ft(na[3] * fa)
-    n0, n1, n2, n3 = ft(n[0]), ft(n[1]), ft(n[2]), ft(n[3])
-    er, ei, ar, ai, br, bi = co[0], co[1], co[2], co[3], co[4], co[5]
-    zr, zi, pr, pi = sc.zr, sc.zi, sc.pr, sc.pi
-    w = ft(0.0)
-    b = ft(0.0)
-    two = ft(2.0)
-    for j in range(zr.size):
-        g0, g1, g2, g3 = r0[j], r1[j], r2[j], r3[j]
-        k0, k1, k2, k3 = i0[j], i1[j], i2[j], i3[j]
-        u_r = m0 * g0 + m1 * g1 + m2 * g2 + m3 * g3
-        u_i = m0 * k0 + m1 * k1 + m2 * k2 + m3 * k3
-        z_r = zr[j] + lr[j] * u_r - li[j] * u_i
-        z_i = zi[j] + lr[j] * u_i + li[j] * u_r
-        p_r = er[j] * z_r - ei[j] * z_i + ar[j] * u_r - ai[j] * u_i
-        p_i = er[j] * z_i + ei[j] * z_r + ar[j] * u_i + ai[j] * u_r
-        pr[j] = p_r
-        pi[j] = p_i
-        h_r = n0 * g0 + n1 * g1 + n2 * g2 + n3 * g3
-        h_i = n0 * k0 + n1 * k1 + n2 * k2 + n3 * k3
-        w += h_r * p_r - h_i * p_i
-        b += br[j] * (h_r * h_r - h_i * h_i) - two * bi[j] * (h_r * h_i)
-    return float(w), float(b)
-
-
-@_kernel
 def predict(
     ea: int,
     na: NDArray[np.float64],
@@ -274,8 +231,6 @@ def predict(
 
     R at both ends is read from the element rows, not kept: on all but one step in ~50 both
     ends lie in one element, whose rows are read once."""
-    if ea == e:
-        return _predict_within(e, na, n, md, co, lr, li, sc, fa)
     d = 2 * ea
     a0, a1, a2, a3 = md.row_r[d], md.row_r[d + 1], md.row_r[d + 2], md.row_r[d + 3]
     c0, c1, c2, c3 = md.row_i[d], md.row_i[d + 1], md.row_i[d + 2], md.row_i[d + 3]
