@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import gzip
 import json
+import os
 import subprocess
 import sys
 import tempfile
@@ -295,8 +296,6 @@ def calibration_table(reports: dict[str, dict[str, Any]]) -> str:
 
 
 def _children_cpu() -> float:
-    import os
-
     t = os.times()
     return float(t.children_user + t.children_system)
 

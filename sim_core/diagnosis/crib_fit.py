@@ -411,17 +411,19 @@ def _interval(search: _Search, kind: FlatKind, best: Trial) -> tuple[float, floa
     bound = 1.0 + 3.84 / (DOF_PER_WINDOW * search.windows)
     mine = _of_kind(search, kind)
     i = mine.index(best)
-    lo, hi = LENGTH_RANGE
+    low, high = None, None
     if 0 < i < len(mine) - 1:
         pts = [(math.log(mine[k].length), mine[k].cost) for k in (i - 1, i, i + 1)]
         par = _parabola(pts)
         if par is not None:
             a, u0, j0 = par
             half = math.sqrt(max(best.cost * bound - j0, 0.0) / a)
-            low = max(min(math.exp(u0 - half), best.length), lo)
-            return min(low, best.length), min(max(math.exp(u0 + half), best.length), hi)
-    ok = [tr.length for tr in mine if tr.cost <= best.cost * bound]
-    return max(min(ok), min(lo, best.length)), min(max(ok), max(hi, best.length))
+            low, high = math.exp(u0 - half), math.exp(u0 + half)
+    if low is None or high is None:
+        ok = [tr.length for tr in mine if tr.cost <= best.cost * bound]
+        low, high = min(ok), max(ok)
+    # within the search's range, and holding the best run
+    return min(max(low, LENGTH_RANGE[0]), best.length), max(min(high, LENGTH_RANGE[1]), best.length)
 
 
 def fit_channels(
