@@ -21,14 +21,44 @@ def test_missing_site_file_is_a_usage_error(
     assert "cannot read" in capsys.readouterr().err
 
 
-def test_every_group_step_is_known_and_an_unknown_one_refused() -> None:
-    steps = [s for group in warm.GROUPS.values() for s in group]
-    assert sorted(steps) == ["constraint", "events", "passage", "track"]  # each compiled once
-    with pytest.raises(ValueError, match="unknown warm-up step"):
+def test_every_step_is_known_and_an_unknown_one_refused() -> None:
+    assert warm.plan_for(None).steps == ("passage", "sweeps", "searches", "events", "track", "rail")
+    assert warm.plan_for(None).rails == ("flat", "cosine", "step", "sampled")
+    with pytest.raises(ValueError, match="unknown warm-up step 'everything'"):
         warm.warm_group(("everything",))
 
 
-def test_the_track_group_runs_a_passage_with_a_crib() -> None:
+def test_only_the_sites_needs_are_planned() -> None:
+    """``--only-sites`` (make demo's first run): a rail on sleepers needs the track's stepper,
+    not the lumped integrator; a lumped foundation the integrator, not the track; the
+    constraint's paths only on the rails' kinds (a rail the contact law dents is also a
+    sampled one)."""
+    from service.wire.site import load_site
+
+    discrete = load_site(warm.DEFAULT_SITES[0])
+    compliant = load_site(warm.DEFAULT_SITES[1])
+    p = warm.plan_for([discrete])
+    assert p.steps == ("sweeps", "searches", "track", "rail")
+    assert p.rails == (discrete.rail.kind,) == ("cosine",)
+    q = warm.plan_for([compliant])
+    assert "passage" in q.steps and "events" in q.steps and "track" not in q.steps
+    plastic = discrete.model_copy(update={"contact": "hertz_plastic"})
+    assert warm.plan_for([plastic]).rails == ("cosine", "sampled")
+    both = warm.plan_for([discrete, compliant])
+    assert set(both.steps) == set(p.steps) | set(q.steps)
+    assert list(both.steps) == sorted(both.steps, key=lambda st: -warm.STEP_COST[st])
+
+
+def test_unknown_constraint_part_or_rail_kind_is_refused() -> None:
+    from sim_core.constraint import warm_up_constraint
+
+    with pytest.raises(ValueError, match="unknown rail kind 'gravel'"):
+        warm_up_constraint(rails=("gravel",))  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="unknown part 'boxes'"):
+        warm_up_constraint(("boxes",))  # type: ignore[arg-type]
+
+
+def test_the_track_step_runs_a_passage_with_a_crib() -> None:
     """A rail on sleepers has its own stepper (~30 s to compile): ``railtwin warm`` fills
     the cache with it too, with one short passage whose crib channel is finite."""
     assert warm.warm_group(("track",)) > 0.0
@@ -60,7 +90,7 @@ def test_sources_are_byte_compiled_where_python_writes_no_bytecode(
 
 
 def test_default_jobs_is_at_most_the_groups_and_at_least_one() -> None:
-    assert 1 <= warm._default_jobs() <= len(warm.GROUPS)
+    assert 1 <= warm._default_jobs() <= len(warm.STEP_COST)
 
 
 def test_a_process_outside_make_finds_the_warm_cache() -> None:

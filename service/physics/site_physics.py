@@ -30,7 +30,7 @@ from sim_core.constraint import warm_up_constraint
 from sim_core.constraint.table import ConstraintTable
 from sim_core.contact_laws import ContactModel
 from sim_core.passage import PassageOutput, PassageSpec, simulate_passage
-from sim_core.rail import RailProfile
+from sim_core.rail import RailKind, RailProfile
 from sim_core.rail_pass import ConstraintTables, DentedRail, TableChoice, rail_pass
 from sim_core.summary import summarize
 from sim_core.wheel import WheelOutline
@@ -94,6 +94,15 @@ class SitePhysics:
             cribs=tuple(c for c in self.cribs if c.x_b <= length),
         )
 
+    def rail_kinds(self) -> tuple[RailKind, ...]:
+        """The kinds of rail profile a wheel can meet at this site: the rail's own (its base,
+        or a sampled profile once dented) and, where the contact law dents it, ``sampled``
+        (a dented rail is a sampled profile)."""
+        kinds: set[RailKind] = {self.base_rail.kind, self._rail.profile.kind}
+        if self.site.contact == "hertz_plastic":
+            kinds.add("sampled")
+        return tuple(sorted(kinds))
+
     def warm_up(self) -> float:
         """Compile and exercise the physics once (no effect on the rail); returns seconds."""
         start = time.perf_counter()
@@ -108,11 +117,13 @@ class SitePhysics:
             mass=600.0,
             radius=0.46,
         )
-        simulate_passage(
-            self._table(probe, self._rail), self._spec(probe, min(self.site.length, 0.5))
-        )
-        # every constraint path a wheel may take, so that no wheel pays for compilation
-        warm_up_constraint()
+        # the whole site on a track (its modes are the ones every wheel uses, reduced once
+        # and cached), half a metre on a lumped foundation
+        on_track = self.site.foundation.kind in ("discrete", "slab")
+        stretch = self.site.length if on_track else min(self.site.length, 0.5)
+        simulate_passage(self._table(probe, self._rail), self._spec(probe, stretch))
+        # every constraint path a wheel may take here, so that no wheel pays for compilation
+        warm_up_constraint(rails=self.rail_kinds())
         flat = probe.model_copy(update={"outline": FlatOutline(kind="flat", length=0.03)})
         self._table(flat, self._rail)
         # the dent press (compiled), on a scratch copy of the rail
