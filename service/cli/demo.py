@@ -126,6 +126,9 @@ def run(args: argparse.Namespace) -> int:
         "(the first start compiles the physics: allow a few minutes; up to 15 are waited for)",
         flush=True,
     )
+    args.recordings.mkdir(parents=True, exist_ok=True)
+    # the measurements are made while the service starts (both take seconds)
+    generator = _generate_measurements(args, site) if diagnosed(site) else None
     with (
         tempfile.TemporaryDirectory(prefix="railtwin-demo-state-") as state,
         ServiceProcess(
@@ -136,10 +139,10 @@ def run(args: argparse.Namespace) -> int:
             extra_args=("--state", state),
         ) as svc,
     ):
-        args.recordings.mkdir(parents=True, exist_ok=True)
         measured_proc = None
-        if diagnosed(site):
-            measured_proc = _stream_measurements(args, endpoint, site)
+        if generator is not None:
+            generator.wait()
+            measured_proc = _stream_measurements(args, endpoint)
         else:
             _no_measurements(site)
         feeder = subprocess.run(
@@ -182,21 +185,17 @@ def run(args: argparse.Namespace) -> int:
     return feeder.returncode or measured_code
 
 
-def _stream_measurements(
-    args: argparse.Namespace, endpoint: str, site: SiteConfig
-) -> subprocess.Popen[bytes]:
-    """Make the measurement of four wheels (the contact force, or the detector's crib
-    channels), then publish each when its wheel leaves the site, alongside the train
-    (``railtwin feed-measured``)."""
-    saved = args.recordings / "demo-measured.json"
-    measured_cmd = [
-        *RAILTWIN,
-        "feed-measured",
-        "--train",
-        str(args.train),
-        "--site-file",
-        str(args.site),
-    ]
+def _measured_cmd(args: argparse.Namespace) -> list[str]:
+    return [*RAILTWIN, "feed-measured", "--train", str(args.train), "--site-file", str(args.site)]
+
+
+def _saved(args: argparse.Namespace) -> Path:
+    return Path(args.recordings) / "demo-measured.json"
+
+
+def _generate_measurements(args: argparse.Namespace, site: SiteConfig) -> subprocess.Popen[bytes]:
+    """Start making the measurement of four wheels (the contact force, or the detector's
+    crib channels) into ``recordings/demo-measured.json`` (``railtwin feed-measured --save``)."""
     what = (
         f"detector's {len(site.detector.cribs)} crib channels"
         if site.detector is not None
@@ -207,7 +206,12 @@ def _stream_measurements(
         "(each wheel's own outline, unknown roughness, sensor chain and noise)",
         flush=True,
     )
-    subprocess.run([*measured_cmd, "--save", str(saved)], cwd=ROOT, check=False)
+    return subprocess.Popen([*_measured_cmd(args), "--save", str(_saved(args))], cwd=ROOT)
+
+
+def _stream_measurements(args: argparse.Namespace, endpoint: str) -> subprocess.Popen[bytes]:
+    """Publish each made measurement when its wheel leaves the site, alongside the train
+    (``railtwin feed-measured --load``)."""
     print(
         "demo: streaming the train; each measurement follows its wheel off the site, "
         "and the twin diagnoses it while the train streams",
@@ -215,9 +219,9 @@ def _stream_measurements(
     )
     return subprocess.Popen(
         [
-            *measured_cmd,
+            *_measured_cmd(args),
             "--load",
-            str(saved),
+            str(_saved(args)),
             "--with-train",
             "--connect",
             endpoint,
