@@ -149,3 +149,60 @@ def test_uncertified_cells_are_marked() -> None:
     assert supports(wheel, SITE) and not supports(wheel, PAPER)
     assert certified_cells(wheel, PAPER, wheel_pieces(wheel)) is None
     assert supports_cosine_hybrid(wheel, PAPER) and not supports_cosine_hybrid(wheel, SITE)
+
+
+def _depth_first_cover(
+    wheel: WheelOutline, rail: RailProfile, pieces: NDArray[np.float64]
+) -> list[tuple[int, float, float, int]]:
+    """The cells (piece, u0, u1, shape) of a cover halved one cell at a time with the scalar
+    interval bounds (``_shape``): the reference for ``cell_cover``'s one pass per level."""
+    from sim_core.constraint import cosine_cells as cc
+
+    R = wheel.nominal_radius
+    psi_max = contact_angle_bound(wheel, rail)
+    k = 2.0 * np.pi / rail.wavelength
+    out = []
+    for i, row in enumerate(pieces):
+        if int(row[2]) == 1:  # a chord: kept whole
+            continue
+        stack = [(float(row[0]), float(row[1]), 0)]
+        while stack:
+            u0, u1, depth = stack.pop()
+            shape = cc._shape(row, R, u0, u1, psi_max, float(rail.amplitude), k)
+            if shape < 0 and depth < cc.MAX_HALVINGS:
+                um = 0.5 * (u0 + u1)
+                stack += [(um, u1, depth + 1), (u0, um, depth + 1)]
+                continue
+            out.append((i, u0, u1, shape if shape >= 0 else cc.UNCERTIFIED))
+    return out
+
+
+@pytest.mark.parametrize(
+    ("length", "amplitude", "wavelength"),
+    [(0.08, 1e-4, 0.05), (0.05, 3e-5, 0.03), (0.12, 2e-6, 0.06)],
+)
+def test_cover_halving_per_level_is_the_cell_by_cell_one(
+    length: float, amplitude: float, wavelength: float, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``cell_cover`` halves all of a level's cells in one array pass; its cells and shapes
+    are those of halving one cell at a time with the scalar bounds (a shallower halving
+    limit keeps the reference quick; the hollow on the paper's cosine has an uncertified
+    middle, the site's flat none)."""
+    from sim_core.constraint import cosine_cells as cc
+
+    monkeypatch.setattr(cc, "MAX_HALVINGS", 9)
+    wheel = WheelOutline.rounded_flat(0.46, length, length**2 / (16 * 0.46))
+    rail = RailProfile.cosine(amplitude, wavelength)
+    pieces = wheel_pieces(wheel)
+    R = wheel.nominal_radius
+    psi_max = contact_angle_bound(wheel, rail)
+    k = 2.0 * np.pi / wavelength
+    got = [
+        (i, u0, u1, s)
+        for i, row in enumerate(pieces)
+        if int(row[2]) != 1
+        for u0, u1, s in cc._cells(row, R, psi_max, amplitude, k)
+    ]
+    assert got == _depth_first_cover(wheel, rail, pieces)
+    if amplitude == 1e-4:
+        assert any(s == cc.UNCERTIFIED for *_, s in got)

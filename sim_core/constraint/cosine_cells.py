@@ -210,6 +210,133 @@ def _shape_of(
     return -1
 
 
+VInterval = tuple[NDArray[np.float64], NDArray[np.float64]]
+"""Many intervals at once: their lower and their upper ends."""
+
+
+def _v(p: Interval, n: int) -> VInterval:
+    return np.full(n, p[0]), np.full(n, p[1])
+
+
+def _vadd(p: VInterval, q: VInterval) -> VInterval:
+    return p[0] + q[0], p[1] + q[1]
+
+
+def _vmul(p: VInterval, q: VInterval) -> VInterval:
+    a, b, c, d = p[0] * q[0], p[0] * q[1], p[1] * q[0], p[1] * q[1]
+    return np.minimum(np.minimum(a, b), np.minimum(c, d)), np.maximum(
+        np.maximum(a, b), np.maximum(c, d)
+    )
+
+
+def _vscale(s: float, p: VInterval) -> VInterval:
+    return (s * p[0], s * p[1]) if s >= 0.0 else (s * p[1], s * p[0])
+
+
+def _vmag(p: VInterval) -> NDArray[np.float64]:
+    return np.maximum(np.abs(p[0]), np.abs(p[1]))
+
+
+def _vcos_range(a: NDArray[np.float64], b: NDArray[np.float64]) -> VInterval:
+    """:func:`_cos_range` of each [a_i, b_i]."""
+    ca = np.array([math.cos(v) for v in a.tolist()])
+    cb = np.array([math.cos(v) for v in b.tolist()])
+    lo = np.minimum(ca, cb)
+    hi = np.maximum(ca, cb)
+    hi[np.floor(b / TWO_PI) * TWO_PI >= a] = 1.0
+    lo[np.floor((b - math.pi) / TWO_PI) * TWO_PI + math.pi >= a] = -1.0
+    return lo, hi
+
+
+def _shapes(
+    row: NDArray[np.float64],
+    R: float,
+    u0: NDArray[np.float64],
+    u1: NDArray[np.float64],
+    psi_max: float,
+    ra: float,
+    k: float,
+) -> NDArray[np.int64]:
+    """:func:`_shape` of each cell [u0_i, u1_i] of one piece, in one pass of array arithmetic
+    (the same operations in the same order, so the same shapes); -1 where none is proved."""
+    n = u0.size
+    kind = int(row[_KIND])
+    zero = _v((0.0, 0.0), n)
+    if kind == _HAVERSINE:
+        w = TWO_PI * R / row[_C1]
+        hd = 0.5 * row[_C0]
+        t0, t1 = w * (u0 - row[_CEN]), w * (u1 - row[_CEN])
+        c = _vcos_range(t0, t1)
+        sn = _vcos_range(t0 - 0.5 * math.pi, t1 - 0.5 * math.pi)
+        rho = _vadd(_v((R - hd, R - hd), n), _vscale(-hd, c))
+        r1, r2, r3 = _vscale(hd * w, sn), _vscale(hd * w * w, c), _vscale(-hd * w**3, sn)
+        r2_rho = _vadd(_vscale(hd * (w * w + 1.0), c), _v((hd - R, hd - R), n))
+        r3_r1 = _vscale(-hd * w * (w * w + 3.0), sn)
+        r2_3 = _vadd(_vscale(hd * (3.0 * w * w + 1.0), c), _v((hd - R, hd - R), n))
+    elif kind == _LINEAR:
+        b = row[_C1]
+        e0 = R + row[_C0] + b * (u0 - row[_T0])
+        e1 = R + row[_C0] + b * (u1 - row[_T0])
+        rho = (np.minimum(e0, e1), np.maximum(e0, e1))
+        r1, r2, r3 = _v((b, b), n), zero, zero
+        r2_rho, r3_r1, r2_3 = _vscale(-1.0, rho), _v((-3.0 * b, -3.0 * b), n), _vscale(-1.0, rho)
+    elif kind == _ARC:
+        rho, r1, r2, r3 = _v((R, R), n), zero, zero, zero
+        r2_rho, r3_r1, r2_3 = _v((-R, -R), n), zero, _v((-R, -R), n)
+    else:
+        raise ValueError(f"cosine cells: no interval bounds for piece kind {kind}")
+    cp = _v((math.cos(psi_max), 1.0), n)
+    sp = _v((-math.sin(psi_max), math.sin(psi_max)), n)
+    W = _vadd(_vmul(r2_rho, cp), _vscale(-2.0, _vmul(r1, sp)))
+    Wp = _vadd(_vmul(r3_r1, cp), _vscale(-1.0, _vmul(r2_3, sp)))
+    A = _vmag(_vadd(_vmul(r1, sp), _vmul(rho, cp)))
+    dA = _vmag(
+        _vadd(_vadd(_vmul(r2, sp), _vscale(2.0, _vmul(r1, cp))), _vscale(-1.0, _vmul(rho, sp)))
+    )
+    ddA = _vmag(
+        _vadd(
+            _vadd(_vmul(r3, sp), _vscale(3.0, _vmul(r2, cp))),
+            _vadd(_vscale(-3.0, _vmul(r1, sp)), _vscale(-1.0, _vmul(rho, cp))),
+        )
+    )
+    k1, k2, k3 = abs(ra) * k, abs(ra) * k * k, abs(ra) * k**3
+    e2 = k2 * A * A + k1 * dA
+    e3 = k3 * A**3 + 3.0 * k2 * A * dA + k1 * ddA
+    return np.select(
+        [W[1] + e2 < -MARGIN, W[0] - e2 > MARGIN, Wp[0] - e3 > MARGIN, Wp[1] + e3 < -MARGIN],
+        [CONCAVE, CONVEX, RISING, FALLING],
+        -1,
+    ).astype(np.int64)
+
+
+def _cells(
+    row: NDArray[np.float64], R: float, psi_max: float, ra: float, k: float
+) -> list[tuple[float, float, int]]:
+    """The cells (u0, u1, shape) of one piece in order of u: halved where no shape is proved,
+    each level of halving in one pass (:func:`_shapes`), down to ``MAX_HALVINGS``."""
+    u0 = np.array([float(row[_T0])])
+    u1 = np.array([float(row[_T1])])
+    done: list[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.int64]]] = []
+    for depth in range(MAX_HALVINGS + 1):
+        shape = _shapes(row, R, u0, u1, psi_max, ra, k)
+        failed = shape < 0
+        if depth == MAX_HALVINGS:
+            shape[failed] = UNCERTIFIED
+            failed[:] = False
+        done.append((u0[~failed], u1[~failed], shape[~failed]))
+        if not failed.any():
+            break
+        a, b = u0[failed], u1[failed]
+        um = 0.5 * (a + b)
+        u0 = np.concatenate((a, um))
+        u1 = np.concatenate((um, b))
+    lo = np.concatenate([d[0] for d in done])
+    hi = np.concatenate([d[1] for d in done])
+    sh = np.concatenate([d[2] for d in done])
+    order = np.argsort(lo, kind="stable")
+    return list(zip(lo[order].tolist(), hi[order].tolist(), sh[order].tolist(), strict=True))
+
+
 def certified_cells(
     wheel: WheelOutline, rail: RailProfile, pieces: NDArray[np.float64]
 ) -> NDArray[np.float64] | None:
@@ -255,17 +382,7 @@ def cell_cover(
         if kind == _CHORD:
             out_rows.append([*row[:_CONC], float(CONCAVE), *row[_CONC + 1 :]])
             continue
-        stack = [(float(row[_T0]), float(row[_T1]), 0)]
-        while stack:
-            u0, u1, depth = stack.pop()
-            shape = _shape(row, R, u0, u1, psi_max, ra, k)
-            if shape < 0 and depth < MAX_HALVINGS:
-                um = 0.5 * (u0 + u1)
-                stack.append((um, u1, depth + 1))
-                stack.append((u0, um, depth + 1))
-                continue
-            if shape < 0:
-                shape = UNCERTIFIED
+        for u0, u1, shape in _cells(row, R, psi_max, ra, k):
             prev = out_rows[-1] if out_rows else None
             if (
                 kind == _HAVERSINE
