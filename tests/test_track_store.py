@@ -137,3 +137,24 @@ def test_a_crashed_writers_file_is_cleaned_when_stale(
     store.save("k" * 40, {"a": np.zeros(4)})
     assert not stale.exists()
     assert fresh.exists()
+
+
+def test_an_entry_served_from_memory_is_still_marked_used(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A long-running twin reads its track once and then serves it from memory: its entry's
+    mtime is still refreshed (every ``TOUCH_INTERVAL`` at most), so that the bound evicts
+    other entries before the one in use."""
+    import os
+
+    monkeypatch.setenv("RAILTWIN_TRACK_CACHE", str(tmp_path))
+    monkeypatch.setattr(store, "_touched", {})
+    a = _fresh(1.5)
+    (entry,) = tmp_path.glob(f"*{store.SUFFIX}")
+    os.utime(entry, (1e9, 1e9))  # 2001: the least recently used of any cache
+    assert reduce_track(TRACK, 0.0, 1.5, cutoff=1500.0) is a  # from memory, not the file
+    assert entry.stat().st_mtime == 1e9  # touched with the write, not again within the interval
+    monkeypatch.setattr(store, "_touched", {})  # the interval has passed
+    assert reduce_track(TRACK, 0.0, 1.5, cutoff=1500.0) is a
+    assert entry.stat().st_mtime > 1e9
+    assert not store.touch("0" * store.KEY_LENGTH)  # no such entry: nothing, no error

@@ -205,16 +205,30 @@ def reduce_track(
     absorber_bays: int = ABSORBER_BAYS,
     elements_per_bay: int = ELEMENTS_PER_BAY,
 ) -> ModalTrack:
-    """The modal track for a wheel from ``x0`` to ``x1`` (cached: the same arguments, the same object)."""
-    return _reduce(
-        track,
-        round(x0, 9),
-        round(x1, 9),
-        cribs,
-        cutoff,
-        margin_bays,
-        absorber_bays,
-        elements_per_bay,
+    """The modal track for a wheel from ``x0`` to ``x1`` (cached: the same arguments, the same object).
+
+    An object served from memory still marks its disk entry used (``store.touch``, at most
+    every ``store.TOUCH_INTERVAL``), so that the disk cache's bound evicts other entries
+    first."""
+    args = (track, round(x0, 9), round(x1, 9), cribs, cutoff, margin_bays, absorber_bays)
+    mt = _reduce(*args, elements_per_bay)
+    store.touch(_store_name(*args, elements_per_bay))
+    return mt
+
+
+def _store_name(
+    track: TrackSpec,
+    x0: float,
+    x1: float,
+    cribs: tuple[Crib, ...],
+    cutoff: float,
+    margin_bays: int,
+    absorber_bays: int,
+    elements_per_bay: int,
+) -> str:
+    """The disk cache's entry of a reduction (``store.key`` of everything it depends on)."""
+    return store.key(
+        (track, x0, x1, cribs, cutoff, margin_bays, absorber_bays, elements_per_bay, ABSORBER_RATE)
     )
 
 
@@ -246,9 +260,7 @@ def _reduce(
             f"the track model would have {dofs} degrees of freedom, more than MAX_DOFS = "
             f"{MAX_DOFS}: shorten the simulated stretch or lengthen the sleeper spacing",
         )
-    name = store.key(
-        (track, x0, x1, cribs, cutoff, margin_bays, absorber_bays, elements_per_bay, ABSORBER_RATE)
-    )
+    name = _store_name(track, x0, x1, cribs, cutoff, margin_bays, absorber_bays, elements_per_bay)
     kept = store.load(name, (*_ARRAYS, "x"))
     if kept is not None and kept["x"].shape == lay.x.shape and np.array_equal(kept["x"], lay.x):
         return _from_arrays(track, lay, cutoff, cribs, kept)

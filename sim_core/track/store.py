@@ -11,8 +11,9 @@ damaged (CRC-32 of the payload) or foreign entry is ignored and replaced.
 
 The directory is bounded: after each write, entries beyond ``RAILTWIN_TRACK_CACHE_MAX_MB``
 (``MAX_MB`` by default) are deleted, the least recently used first (a read touches its
-entry's mtime), never the one just written; a writer's temporary file left over an hour
-(a writer that died before its rename) goes too. A calibrating twin reduces a new track for each
+entry's mtime, and so does a process serving it from memory, every ``TOUCH_INTERVAL``),
+never the one just written; a writer's temporary file left over an hour (a writer that died
+before its rename) goes too. A calibrating twin reduces a new track for each
 step of its estimate, and an unbounded cache would fill the disk.
 
 The file is ``MAGIC``, the length of a JSON header (8 bytes, little-endian), the header
@@ -110,6 +111,30 @@ def load(name: str, fields: tuple[str, ...] = ()) -> dict[str, np.ndarray] | Non
     with contextlib.suppress(OSError):
         os.utime(path)  # recently used: evicted last
     return arrays
+
+
+TOUCH_INTERVAL = 600.0
+"""s between two touches of one entry by a process that serves it from memory (``touch``)."""
+
+_touched: dict[str, float] = {}
+
+
+def touch(name: str) -> bool:
+    """Mark entry ``name`` recently used (its mtime) for a process that holds it in memory and
+    so never reads it: a long-running twin's track would otherwise be evicted as the least
+    recently used while in use. At most once per ``TOUCH_INTERVAL`` an entry (one ``utime``);
+    True if it touched the file now."""
+    d = directory()
+    now = time.monotonic()
+    last = _touched.get(name)
+    if d is None or (last is not None and now - last < TOUCH_INTERVAL):
+        return False
+    _touched[name] = now
+    try:
+        os.utime(d / f"{name}{SUFFIX}")
+    except OSError:  # gone or unwritable: the next read reduces it again
+        return False
+    return True
 
 
 def max_bytes() -> int:
