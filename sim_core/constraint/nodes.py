@@ -224,52 +224,50 @@ def _table_columns(
     NDArray[np.float64],
     NDArray[np.float64],
 ]:
-    """(x, y, slope left, slope right, x_D, kinks) of the node rows: close nodes merged
-    (:func:`merge_close`), a slope jump at or below KINK_SLOPE made smooth (the mean slope
+    """(x, y, slope left, slope right, x_D, kinks) of the node rows: nodes closer than the
+    position round-off (1e-13·|x|) merged (the left slope of the first, the right slope and
+    contact point of the last, a kink if any was one), a slope jump at or below KINK_SLOPE made smooth (the mean slope
     on both sides: round-off, not a kink), a periodic table's last node one period after
     the first (never a kink)."""
-    m = merge_close(nodes)
-    n = m.shape[0]
+    # the merged rows are read straight into the columns (no merged copy of the node rows)
+    rows = nodes.shape[0]
+    n = 0
+    for i in range(rows):
+        xi = nodes[i, X]
+        if not (n > 0 and xi - nodes[i - 1, X] <= 1e-13 * max(1.0, abs(xi))):
+            n += 1
     x = np.empty(n)
     y = np.empty(n)
     sl = np.empty(n)
     sr = np.empty(n)
     xd = np.empty(n)
+    kk = np.empty(n)
+    m = 0
+    for i in range(rows):
+        xi = nodes[i, X]
+        if m > 0 and xi - nodes[i - 1, X] <= 1e-13 * max(1.0, abs(xi)):
+            sr[m - 1] = nodes[i, SR]
+            xd[m - 1] = nodes[i, XD]
+            kk[m - 1] = max(kk[m - 1], nodes[i, K])
+            continue
+        x[m] = xi
+        y[m] = nodes[i, V]
+        sl[m] = nodes[i, SL]
+        sr[m] = nodes[i, SR]
+        xd[m] = nodes[i, XD]
+        kk[m] = nodes[i, K]
+        m += 1
     kinks = np.empty(n)
     nk = 0
     for i in range(n):
-        a = m[i, SL]
-        b = m[i, SR]
+        a = sl[i]
+        b = sr[i]
         tiny = abs(a - b) <= KINK_SLOPE
         if tiny:
-            a = b = 0.5 * (a + b)
-        x[i] = m[i, X]
-        y[i] = m[i, V]
-        sl[i] = a
-        sr[i] = b
-        xd[i] = m[i, XD]
-        if m[i, K] > 0 and not tiny and not (period > 0 and i == n - 1):
-            kinks[nk] = m[i, X]
+            sl[i] = sr[i] = 0.5 * (a + b)
+        if kk[i] > 0 and not tiny and not (period > 0 and i == n - 1):
+            kinks[nk] = x[i]
             nk += 1
     if period > 0:
         x[n - 1] = x[0] + period
     return x, y, sl, sr, xd, kinks[:nk].copy()
-
-
-@numba.njit(cache=True)
-def merge_close(nodes: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Nodes closer than the position round-off merged (the left slope of the first, the
-    right slope and contact point of the last, a kink if any was one)."""
-    n = nodes.shape[0]
-    out = np.empty_like(nodes)
-    m = 0
-    for i in range(n):
-        xi = nodes[i, X]
-        if m > 0 and xi - nodes[i - 1, X] <= 1e-13 * max(1.0, abs(xi)):
-            out[m - 1, SR] = nodes[i, SR]
-            out[m - 1, XD] = nodes[i, XD]
-            out[m - 1, K] = max(out[m - 1, K], nodes[i, K])
-            continue
-        out[m] = nodes[i]
-        m += 1
-    return out[:m]

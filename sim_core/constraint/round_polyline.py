@@ -199,7 +199,7 @@ def round_nodes(
     lo = min(x0, float(poly.vx[1]) - 0.05)
     hi = max(x1, float(poly.vx[-2]) + 0.05)
     poly = rail_polyline(rail, lo, hi, R)
-    # its nodes are already more than the merging distance apart (merge_close's 1e-13·|x|)
+    # its nodes are already more than the merging distance apart (table_from_nodes' 1e-13·|x|)
     nodes = _envelope_nodes(lo, hi, max(math.ceil((hi - lo) / step), 2), R, poly.vx, poly.vy)
     _ROUND_CACHE.put(rail, (float(R), float(step)), lo, hi, nodes)
     return nodes
