@@ -172,7 +172,10 @@ def _outline(
 def _shape(
     row: NDArray[np.float64], R: float, u0: float, u1: float, psi_max: float, ra: float, k: float
 ) -> int:
-    """The certified shape of G on the cell [u0, u1] (module docstring), -1 if none is proved."""
+    """The certified shape of G on the cell [u0, u1] (module docstring), -1 if none is proved.
+
+    One cell at a time: the reference that :func:`_shapes` (all of a halving level's cells in
+    one array pass, what :func:`cell_cover` runs) is tested against."""
     return _shape_of(_outline(row, R, u0, u1), psi_max, ra, k)
 
 
