@@ -91,6 +91,16 @@ class _Fit(NamedTuple):
     noise: float
     ratio: float
 
+    @classmethod
+    def of(cls, rms: float, noise: float) -> _Fit:
+        """A fit of residual ``rms`` on a record of noise ``noise`` (N)."""
+        return cls(explains(rms, noise), rms, noise, residual_ratio(rms, noise))
+
+    @property
+    def reported_ratio(self) -> float | None:
+        """The residual ratio as a diagnosis reports it (None where it is not finite)."""
+        return self.ratio if math.isfinite(self.ratio) else None
+
 
 @dataclass(frozen=True)
 class FitCurves:
@@ -346,9 +356,7 @@ class Diagnoser:
             fitted = np.full_like(f, passage.load)
         cfg = self.site.diagnosis
         flat = est.flat
-        noise = est.noise_level
-        ratio = residual_ratio(est.fit_rms, noise)
-        explained = explains(est.fit_rms, noise)
+        fit = _Fit.of(est.fit_rms, est.noise_level)
         at_line: float | None = None
         line_low: float | None = None
         line_high: float | None = None
@@ -378,11 +386,11 @@ class Diagnoser:
         level, reasons = self._judge(
             "measurement",
             peak_measured,
-            flat.length if flat is not None else None,
-            est.length_high if flat is not None else None,
+            flat,
+            est.length_high,
             at_line,
             line_high,
-            _Fit(explained, est.fit_rms, noise, ratio),
+            fit,
         )
         if refit_failed:
             reasons.append(
@@ -408,9 +416,9 @@ class Diagnoser:
             peak_force_at_line_speed=at_line,
             peak_force_at_line_speed_low=line_low,
             peak_force_at_line_speed_high=line_high,
-            noise_level=noise,
-            fit_residual_ratio=ratio if math.isfinite(ratio) else None,
-            explained=explained,
+            noise_level=fit.noise,
+            fit_residual_ratio=fit.reported_ratio,
+            explained=fit.explained,
             wall_time=time.perf_counter() - start,
             model_version=self.model_version,
             calibration=self.calibration,
@@ -422,8 +430,8 @@ class Diagnoser:
         self,
         what: Literal["measurement", "channels"],
         peak_measured: float,
-        length: float | None,
-        length_high: float | None,
+        flat: Flat | None,
+        length_high: float,
         at_line: float | None,
         line_high: float | None,
         fit: _Fit,
@@ -431,8 +439,12 @@ class Diagnoser:
         """The verdict and its reasons, the same whatever was measured: from the fitted flat
         and the forecast where the fit explains the record; else from the measured peaks and
         the upper ends of the length interval and of the forecast's band (a flat is certainly
-        there when the record stands this far above its noise, but not the fitted one)."""
+        there when the record stands this far above its noise, but not the fitted one).
+        ``length_high``: the upper end of the fitted flat's length interval (unread without
+        a flat)."""
         cfg = self.site.diagnosis
+        length = flat.length if flat is not None else None
+        top = length_high if flat is not None else None
         if fit.explained:
             return verdict(
                 self.limits,
@@ -440,9 +452,9 @@ class Diagnoser:
                 at_line if at_line is not None else line_high,  # the point lost: the band's top
                 length,
                 cfg.line_speed,
-                length_high,
+                top,
             )
-        level, reasons = verdict(self.limits, peak_measured, line_high, length_high, cfg.line_speed)
+        level, reasons = verdict(self.limits, peak_measured, line_high, top, cfg.line_speed)
         basis = "the measured peaks" + (
             ", the upper end of the length interval and of the line-speed forecast"
             if length is not None
@@ -472,9 +484,7 @@ class Diagnoser:
         est = fit_channels(cs, wheel, speed, t, chans)
         cfg = self.site.diagnosis
         flat = est.flat
-        noise = est.noise
-        ratio = residual_ratio(est.fit_rms, noise)
-        explained = explains(est.fit_rms, noise)
+        fit = _Fit.of(est.fit_rms, est.noise)
         line: tuple[float | None, ...] = (None,) * 6
         unsimulated = False
         if cfg.line_speed is not None:
@@ -485,11 +495,11 @@ class Diagnoser:
         level, reasons = self._judge(
             "channels",
             peak_measured,
-            flat.length if flat is not None else None,
-            est.length_high if flat is not None else None,
+            flat,
+            est.length_high,
             at_line,
             line_high,
-            _Fit(explained, est.fit_rms, noise, ratio),
+            fit,
         )
         if unsimulated:
             reasons.append(UNSIMULATED_REASON)
@@ -525,9 +535,9 @@ class Diagnoser:
             peak_channel_at_line_speed_low=ch_low,
             peak_channel_at_line_speed_high=ch_high,
             measured="channels",
-            noise_level=noise,
-            fit_residual_ratio=ratio if math.isfinite(ratio) else None,
-            explained=explained,
+            noise_level=fit.noise,
+            fit_residual_ratio=fit.reported_ratio,
+            explained=fit.explained,
             wall_time=time.perf_counter() - start,
             model_version=self.model_version,
             calibration=self.calibration,
