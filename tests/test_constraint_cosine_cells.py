@@ -155,7 +155,7 @@ def _depth_first_cover(
     wheel: WheelOutline, rail: RailProfile, pieces: NDArray[np.float64]
 ) -> list[tuple[int, float, float, int]]:
     """The cells (piece, u0, u1, shape) of a cover halved one cell at a time with the scalar
-    interval bounds (``_shape``): the reference for ``cell_cover``'s one pass per level."""
+    outline bounds (``_shape``): the reference for ``cell_cover``'s one pass per level."""
     from sim_core.constraint import cosine_cells as cc
 
     R = wheel.nominal_radius
@@ -185,7 +185,7 @@ def test_cover_halving_per_level_is_the_cell_by_cell_one(
     length: float, amplitude: float, wavelength: float, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """``cell_cover`` halves all of a level's cells in one array pass; its cells and shapes
-    are those of halving one cell at a time with the scalar bounds (a shallower halving
+    are those of halving one cell at a time on the scalar outline bounds (a shallower halving
     limit keeps the reference quick; the hollow on the paper's cosine has an uncertified
     middle, the site's flat none)."""
     from sim_core.constraint import cosine_cells as cc

@@ -124,10 +124,6 @@ def _scale(s: float, p: Interval) -> Interval:
     return (s * p[0], s * p[1]) if s >= 0.0 else (s * p[1], s * p[0])
 
 
-def _mag(p: Interval) -> float:
-    return max(abs(p[0]), abs(p[1]))
-
-
 def _cos_range(a: float, b: float) -> Interval:
     """The range of cos over [a, b]."""
     lo = min(math.cos(a), math.cos(b))
@@ -174,43 +170,10 @@ def _shape(
 ) -> int:
     """The certified shape of G on the cell [u0, u1] (module docstring), -1 if none is proved.
 
-    One cell at a time: the reference that :func:`_shapes` (all of a halving level's cells in
-    one array pass, what :func:`cell_cover` runs) is tested against."""
-    return _shape_of(_outline(row, R, u0, u1), psi_max, ra, k)
-
-
-def _shape_of(
-    outline: tuple[Interval, Interval, Interval, Interval, Interval, Interval, Interval],
-    psi_max: float,
-    ra: float,
-    k: float,
-) -> int:
-    """The certified shape of G for an outline given by the intervals of :func:`_outline`."""
-    rho, r1, r2, r3, r2_rho, r3_r1, r2_3 = outline
-    cp = (math.cos(psi_max), 1.0)
-    sp = (-math.sin(psi_max), math.sin(psi_max))
-    W = _add(_mul(r2_rho, cp), _scale(-2.0, _mul(r1, sp)))
-    Wp = _add(_mul(r3_r1, cp), _scale(-1.0, _mul(r2_3, sp)))
-    A = _mag(_add(_mul(r1, sp), _mul(rho, cp)))
-    dA = _mag(_add(_add(_mul(r2, sp), _scale(2.0, _mul(r1, cp))), _scale(-1.0, _mul(rho, sp))))
-    ddA = _mag(
-        _add(
-            _add(_mul(r3, sp), _scale(3.0, _mul(r2, cp))),
-            _add(_scale(-3.0, _mul(r1, sp)), _scale(-1.0, _mul(rho, cp))),
-        )
-    )
-    k1, k2, k3 = abs(ra) * k, abs(ra) * k * k, abs(ra) * k**3
-    e2 = k2 * A * A + k1 * dA
-    e3 = k3 * A**3 + 3.0 * k2 * A * dA + k1 * ddA
-    if W[1] + e2 < -MARGIN:
-        return CONCAVE
-    if W[0] - e2 > MARGIN:
-        return CONVEX
-    if Wp[0] - e3 > MARGIN:
-        return RISING
-    if Wp[1] + e3 < -MARGIN:
-        return FALLING
-    return -1
+    One cell at a time, from the scalar outline bounds (:func:`_outline`): the reference that
+    :func:`_shapes` (all of a halving level's cells in one array pass, what :func:`cell_cover`
+    runs) is tested against."""
+    return int(_shapes_of(_one(_outline(row, R, u0, u1)), psi_max, ra, k)[0])
 
 
 VInterval = tuple[NDArray[np.float64], NDArray[np.float64]]
@@ -261,7 +224,27 @@ def _shapes(
     k: float,
 ) -> NDArray[np.int64]:
     """:func:`_shape` of each cell [u0_i, u1_i] of one piece, in one pass of array arithmetic
-    (the same operations in the same order, so the same shapes); -1 where none is proved."""
+    (the same operations in the same order as :func:`_outline`, so the same shapes); -1 where
+    none is proved."""
+    return _shapes_of(_outline_many(row, R, u0, u1), psi_max, ra, k)
+
+
+Outline = tuple[VInterval, VInterval, VInterval, VInterval, VInterval, VInterval, VInterval]
+"""The seven intervals of :func:`_outline` (ρ, its derivatives and their sums), for many cells."""
+
+
+def _one(
+    outline: tuple[Interval, Interval, Interval, Interval, Interval, Interval, Interval],
+) -> Outline:
+    """A scalar outline (:func:`_outline`) as one cell of an :data:`Outline`."""
+    rho, r1, r2, r3, r2_rho, r3_r1, r2_3 = (_v(p, 1) for p in outline)
+    return rho, r1, r2, r3, r2_rho, r3_r1, r2_3
+
+
+def _outline_many(
+    row: NDArray[np.float64], R: float, u0: NDArray[np.float64], u1: NDArray[np.float64]
+) -> Outline:
+    """:func:`_outline` of each cell [u0_i, u1_i] of one piece."""
     n = u0.size
     kind = int(row[_KIND])
     zero = _v((0.0, 0.0), n)
@@ -288,6 +271,13 @@ def _shapes(
         r2_rho, r3_r1, r2_3 = _v((-R, -R), n), zero, _v((-R, -R), n)
     else:
         raise ValueError(f"cosine cells: no interval bounds for piece kind {kind}")
+    return rho, r1, r2, r3, r2_rho, r3_r1, r2_3
+
+
+def _shapes_of(outline: Outline, psi_max: float, ra: float, k: float) -> NDArray[np.int64]:
+    """The certified shape of G for each cell of ``outline``, -1 where none is proved."""
+    rho, r1, r2, r3, r2_rho, r3_r1, r2_3 = outline
+    n = rho[0].size
     cp = _v((math.cos(psi_max), 1.0), n)
     sp = _v((-math.sin(psi_max), math.sin(psi_max)), n)
     W = _vadd(_vmul(r2_rho, cp), _vscale(-2.0, _vmul(r1, sp)))
@@ -374,7 +364,7 @@ def cell_cover(
         b = (float(pieces[linear, _C1].min()), float(pieces[linear, _C1].max()))
         zero = (0.0, 0.0)
         envelope = (rho, b, zero, zero, _scale(-1.0, rho), _scale(-3.0, b), _scale(-1.0, rho))
-        if _shape_of(envelope, psi_max, ra, k) == CONCAVE:
+        if _shapes_of(_one(envelope), psi_max, ra, k)[0] == CONCAVE:
             out = pieces.copy()
             out[linear, _CONC] = float(CONCAVE)
             if linear.all():
