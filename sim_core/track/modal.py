@@ -212,11 +212,11 @@ def reduce_track(
     first."""
     args = (track, round(x0, 9), round(x1, 9), cribs, cutoff, margin_bays, absorber_bays)
     mt = _reduce(*args, elements_per_bay)
-    store.touch(_store_name(*args, elements_per_bay))
+    store.touch(_store_inputs(*args, elements_per_bay))
     return mt
 
 
-def _store_name(
+def _store_inputs(
     track: TrackSpec,
     x0: float,
     x1: float,
@@ -225,10 +225,18 @@ def _store_name(
     margin_bays: int,
     absorber_bays: int,
     elements_per_bay: int,
-) -> str:
-    """The disk cache's entry of a reduction (``store.key`` of everything it depends on)."""
-    return store.key(
-        (track, x0, x1, cribs, cutoff, margin_bays, absorber_bays, elements_per_bay, ABSORBER_RATE)
+) -> tuple[Any, ...]:
+    """Everything a reduction depends on: its disk cache entry is ``store.key`` of it."""
+    return (
+        track,
+        x0,
+        x1,
+        cribs,
+        cutoff,
+        margin_bays,
+        absorber_bays,
+        elements_per_bay,
+        ABSORBER_RATE,
     )
 
 
@@ -260,7 +268,9 @@ def _reduce(
             f"the track model would have {dofs} degrees of freedom, more than MAX_DOFS = "
             f"{MAX_DOFS}: shorten the simulated stretch or lengthen the sleeper spacing",
         )
-    name = _store_name(track, x0, x1, cribs, cutoff, margin_bays, absorber_bays, elements_per_bay)
+    name = store.key(
+        _store_inputs(track, x0, x1, cribs, cutoff, margin_bays, absorber_bays, elements_per_bay)
+    )
     kept = store.load(name, (*_ARRAYS, "x"))
     if kept is not None and kept["x"].shape == lay.x.shape and np.array_equal(kept["x"], lay.x):
         return _from_arrays(track, lay, cutoff, cribs, kept)

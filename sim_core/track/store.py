@@ -36,6 +36,7 @@ import os
 import tempfile
 import time
 import zlib
+from collections.abc import Hashable
 from pathlib import Path
 from typing import Any
 
@@ -116,22 +117,23 @@ def load(name: str, fields: tuple[str, ...] = ()) -> dict[str, np.ndarray] | Non
 TOUCH_INTERVAL = 600.0
 """s between two touches of one entry by a process that serves it from memory (``touch``)."""
 
-_touched: dict[str, float] = {}
+_touched: dict[Hashable, float] = {}
 
 
-def touch(name: str) -> bool:
-    """Mark entry ``name`` recently used (its mtime) for a process that holds it in memory and
-    so never reads it: a long-running twin's track would otherwise be evicted as the least
-    recently used while in use. At most once per ``TOUCH_INTERVAL`` an entry (one ``utime``);
-    True if it touched the file now."""
+def touch(inputs: Hashable) -> bool:
+    """Mark the entry of ``inputs`` (``key(inputs)``) recently used (its mtime) for a process
+    that holds it in memory and so never reads it: a long-running twin's track would
+    otherwise be evicted as the least recently used while in use. At most once per
+    ``TOUCH_INTERVAL`` an entry (one ``utime``; the key is hashed only then, not on every
+    call); True if it touched the file now."""
     d = directory()
     now = time.monotonic()
-    last = _touched.get(name)
+    last = _touched.get(inputs)
     if d is None or (last is not None and now - last < TOUCH_INTERVAL):
         return False
-    _touched[name] = now
+    _touched[inputs] = now
     try:
-        os.utime(d / f"{name}{SUFFIX}")
+        os.utime(d / f"{key(inputs)}{SUFFIX}")
     except OSError:  # gone or unwritable: the next read reduces it again
         return False
     return True
