@@ -41,9 +41,9 @@ MAX_CRIBS = 32
 MAX_TRACK_LENGTH = 30.0
 """Longest simulated stretch on a discrete or slab foundation, m.
 
-The rail is a beam on supports reduced to its modes up to 16 kHz: their number, and so the
+The rail is a beam on supports reduced to its modes up to 12 kHz: their number, and so the
 work of every step and the reduction's dense eigen-solves, grows with the stretch (about
-1 000 modes for 30 m of 0.6 m bays; the physics refuses more than
+800 modes for 30 m of 0.6 m bays; the physics refuses more than
 ``sim_core.track.modal.MAX_MODES`` = 1 500). 30 m is five times a detector site (a few
 metres) with its run-in.
 """
