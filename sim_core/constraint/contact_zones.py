@@ -23,6 +23,7 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -60,15 +61,46 @@ def _contact_angles(
     if hit is not None:
         return hit
     rn = round_nodes(rail, R, step, x0, x1)
-    x = rn[:, X].copy()
-    th = np.arcsin(np.clip((rn[:, XD] - x) / R, -1.0, 1.0)) + x / R
-    # the running bounds: monotone, so that each flat pass is found by binary search; they
-    # enclose every interval's own range (a zone may only grow where θ* dips, by < 1e-7 rad)
-    lo = np.minimum.accumulate((th[:-1] - FLAT_ZONE_MARGIN)[::-1])[::-1]
-    hi = np.maximum.accumulate(th[1:] + FLAT_ZONE_MARGIN)
+    n = rn.shape[0]
+    x = np.empty(n)
+    lo = np.empty(max(n - 1, 0))
+    hi = np.empty(max(n - 1, 0))
+    _bounds(rn, float(R), FLAT_ZONE_MARGIN, x, lo, hi)
     out = ContactAngles(x, lo, hi)
     _CACHE.put(rail, (float(R), float(step)), float(x[0]), float(x[-1]), out)
     return out
+
+
+@numba.njit(cache=True, _nrt=False)  # type: ignore[call-overload]  # _nrt: not in the stubs
+def _bounds(
+    rn: NDArray[np.float64],
+    R: float,
+    margin: float,
+    x: NDArray[np.float64],
+    lo: NDArray[np.float64],
+    hi: NDArray[np.float64],
+) -> None:
+    """:func:`_contact_angles`' arrays in one pass over the round table's nodes ``rn``: their
+    positions into ``x``; θ* - φ0 = asin((x_D - x)/R) + x/R at each, and its running bounds
+    (monotone, so that each flat pass is found by binary search; they enclose every
+    interval's own range: a zone may only grow where θ* dips, by < 1e-7 rad) into ``lo`` and
+    ``hi`` (the numpy form cost 0.75 ms of a 6 m rail's 4 ms table in its reversed
+    accumulations and copies)."""
+    n = rn.shape[0]
+    for i in range(n):
+        xi = rn[i, X]
+        x[i] = xi
+        th = math.asin(min(max((rn[i, XD] - xi) / R, -1.0), 1.0)) + xi / R
+        if i < n - 1:
+            lo[i] = th - margin  # interval i starts at node i
+        if i > 0:
+            hi[i - 1] = th + margin  # interval i - 1 ends at node i
+    for i in range(1, n - 1):
+        if hi[i] < hi[i - 1]:
+            hi[i] = hi[i - 1]
+    for i in range(n - 3, -1, -1):
+        if lo[i] > lo[i + 1]:
+            lo[i] = lo[i + 1]
 
 
 def contact_zones(
