@@ -126,10 +126,12 @@ def touch(inputs: Hashable) -> bool:
     otherwise be evicted as the least recently used while in use. At most once per
     ``TOUCH_INTERVAL`` an entry (one ``utime``; the key is hashed only then, not on every
     call); True if it touched the file now."""
-    d = directory()
     now = time.monotonic()
     last = _touched.get(inputs)
-    if d is None or (last is not None and now - last < TOUCH_INTERVAL):
+    if last is not None and now - last < TOUCH_INTERVAL:
+        return False  # before ``directory()``: its Path costs ~0.1 ms, paid every passage
+    d = directory()
+    if d is None:
         return False
     _touched[inputs] = now
     try:
