@@ -75,7 +75,7 @@ from sim_core.constraint.nodes import (
     push,
     split,
     stretch,
-    table_from_nodes,
+    table_from_parts,
 )
 from sim_core.constraint.rail_polyline import RailPolyline, rail_polyline
 from sim_core.constraint.round_polyline import _borrowing, poly_points, round_nodes
@@ -1322,7 +1322,6 @@ def tabulate_polyline(
     x0, x1, _ = stretch(a, b, step, 0.0)
     poly = rail_polyline(rail, x0, x1, R)
     P = polyline_pieces(wheel)
-    parts: list[NDArray[np.float64]] = []
 
     def nint(lo: float, hi: float) -> int:
         return max(math.ceil((hi - lo) / step), 2)
@@ -1351,6 +1350,18 @@ def tabulate_polyline(
             [e for kind, c, d in pieces if kind == "gap" for e in (c, d) if e not in zone_ends]
         )
         ends = poly_points(cuts, R, poly.vx, poly.vy) if cuts.size else ends
+    # the stretch's rows in order, as parts of the round table ``rn`` (source 0) and of the
+    # small rows (source 1: the zones' sweeps and the gaps' exact end nodes), not copied
+    small: list[NDArray[np.float64]] = []
+    plan: list[tuple[int, int, int]] = []
+    n_small = 0
+
+    def take(rows: NDArray[np.float64]) -> None:
+        nonlocal n_small
+        small.append(rows)
+        plan.append((1, n_small, n_small + rows.shape[0]))
+        n_small += rows.shape[0]
+
     ie = 0
     for kind, c, d in pieces:
         if kind == "zone":
@@ -1363,18 +1374,17 @@ def tabulate_polyline(
                 _join_round(sw, 0, rn, R, poly, SL)
             if d < x1:
                 _join_round(sw, sw.shape[0] - 1, rn, R, poly, SR)
-            parts.append(sw)
+            take(sw)
             continue
         if c not in zone_ends:
-            parts.append(ends[ie : ie + 1])
+            take(ends[ie : ie + 1])
             ie += 1
         lo_i = int(np.searchsorted(rn[:, X], c, side="right"))
         hi_i = int(np.searchsorted(rn[:, X], d, side="left"))
-        parts.append(rn[lo_i:hi_i])
+        if hi_i > lo_i:
+            plan.append((0, lo_i, hi_i))
         if d not in zone_ends:
-            parts.append(ends[ie : ie + 1])
+            take(ends[ie : ie + 1])
             ie += 1
-    nodes = np.concatenate(parts)
-    if not np.all(np.diff(nodes[:, X]) > 0):
-        nodes = nodes[np.argsort(nodes[:, X], kind="mergesort")]
-    return table_from_nodes(nodes, 0.0, resolution, step)
+    rows = np.concatenate(small) if small else np.empty((0, NCOL))
+    return table_from_parts(rn, rows, np.array(plan, dtype=np.int64), 0.0, resolution, step)
