@@ -180,6 +180,23 @@ class ConstraintTable:
         allk = (self.kinks[None, :] + self._period_shifts(x0, x1)[:, None]).ravel()
         return np.unique(allk[(allk > x0) & (allk <= x1)])
 
+    def kink_jumps_between(
+        self, x0: float, x1: float
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(positions, |slope jump|) of the kinks in (x0, x1], as ``kinks_between`` lists them;
+        each jump read at the node nearest the kink (a periodic table's at its node in the
+        one period kept). A non-periodic table's in one compiled pass over the nodes (a rough
+        6 m rail's ~10 000 kinks cost 0.3 ms through ``np.searchsorted``)."""
+        if self.period == 0.0 and self.kinks.size and x1 > x0:
+            return _kink_jumps(self.x, self.slope_left, self.slope_right, self.kinks, x0, x1)
+        kinks = self.kinks_between(x0, x1)
+        if kinks.size == 0:
+            return kinks, np.empty(0)
+        xk = kinks if self.period <= 0.0 else self.x[0] + np.mod(kinks - self.x[0], self.period)
+        at = np.clip(np.searchsorted(self.x, xk), 1, self.x.size - 1)
+        at = np.where(np.abs(self.x[at - 1] - xk) < np.abs(self.x[at] - xk), at - 1, at)
+        return kinks, np.abs(self.slope_right[at] - self.slope_left[at])
+
     def _period_shifts(self, x0: float, x1: float) -> NDArray[np.float64]:
         """Multiples of the period that carry the table's one period over [x0, x1] (and one more
         each side)."""
@@ -187,6 +204,45 @@ class ConstraintTable:
         n0 = int(np.floor((x0 - self.x[0]) / p)) - 1
         n1 = int(np.floor((x1 - self.x[0]) / p)) + 1
         return p * np.arange(n0, n1 + 1, dtype=np.float64)
+
+
+@numba.njit(cache=True)
+def _kink_jumps(
+    x: NDArray[np.float64],
+    sl: NDArray[np.float64],
+    sr: NDArray[np.float64],
+    kinks: NDArray[np.float64],
+    x0: float,
+    x1: float,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:meth:`ConstraintTable.kink_jumps_between` of a non-periodic table: the kinks in
+    (x0, x1] in order, and |sr - sl| at the node nearest each (the first node at or above the
+    kink, or the one before it if nearer; never node 0: as ``np.searchsorted`` clipped to
+    1..n-1). Walks the nodes once (the kinks are in node order; sorted first if not)."""
+    n = x.size
+    ordered = True
+    for m in range(1, kinks.size):
+        if kinks[m] < kinks[m - 1]:
+            ordered = False
+            break
+    order = np.arange(kinks.size) if ordered else np.argsort(kinks, kind="mergesort")
+    pos = np.empty(kinks.size)
+    size = np.empty(kinks.size)
+    k = 0
+    j = 0
+    for m in range(kinks.size):
+        xk = kinks[order[m]]
+        if not (x0 < xk <= x1):
+            continue
+        while j < n and x[j] < xk:
+            j += 1
+        at = min(max(j, 1), n - 1)
+        if abs(x[at - 1] - xk) < abs(x[at] - xk):
+            at -= 1
+        pos[k] = xk
+        size[k] = abs(sr[at] - sl[at])
+        k += 1
+    return pos[:k], size[:k]
 
 
 @numba.njit(cache=True, inline="always")

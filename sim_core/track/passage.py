@@ -122,14 +122,8 @@ def simulate_on_track(
 
     n_samples = math.floor(spec.duration * spec.sample_rate * (1 + 1e-12)) + 1
     sample_t = np.minimum(t0 + np.arange(n_samples) / spec.sample_rate, t1)
-    kinks = table.kinks_between(x0 - 1e-12, x1 + table.resolution)
-    if kinks.size:
-        # a periodic table's kinks recur every period: read each one's jump at its own node
-        xk = kinks if table.period <= 0.0 else table.x[0] + np.mod(kinks - table.x[0], table.period)
-        at = np.clip(np.searchsorted(table.x, xk), 1, table.x.size - 1)
-        at = np.where(np.abs(table.x[at - 1] - xk) < np.abs(table.x[at] - xk), at - 1, at)
-        jump = np.abs(table.slope_right[at] - table.slope_left[at])
-        kinks = kinks[jump * v * h_max > KINK_FRACTION * d0]
+    kinks, jump = table.kink_jumps_between(x0 - 1e-12, x1 + table.resolution)
+    kinks = kinks[jump * v * h_max > KINK_FRACTION * d0]
     stops = np.ascontiguousarray(np.sort(kinks / v), dtype=np.float64)
     samples = np.zeros((n_samples, st.N_COLS))
     channels = np.zeros((n_samples, len(cribs)))

@@ -1,0 +1,90 @@
+"""Tables made from parts of node rows, and the kinks' slope jumps read from a table.
+
+``table_from_parts`` must give what ``table_from_nodes`` gives on the rows concatenated (and
+sorted, when a part is out of order); ``kink_jumps_between`` what a search for each kink's
+nearest node gives.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from sim_core.constraint.nodes import NCOL, SL, SR, XD, K, V, X, table_from_nodes, table_from_parts
+from sim_core.constraint.table import ConstraintTable
+from sim_core.constraint.tabulate import tabulate_constraint
+from sim_core.rail import RailProfile
+from sim_core.wheel import WheelOutline
+
+
+def _rows(xs: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    rows = np.zeros((xs.size, NCOL))
+    rows[:, X] = xs
+    rows[:, V] = rng.normal(size=xs.size) * 1e-6
+    rows[:, SL] = rng.normal(size=xs.size) * 1e-3
+    rows[:, SR] = rows[:, SL] + np.where(rng.random(xs.size) < 0.3, 1e-3, 0.0)
+    rows[:, XD] = xs + 1e-4
+    rows[:, K] = (rows[:, SR] != rows[:, SL]).astype(float)
+    return rows
+
+
+def _same(a: ConstraintTable, b: ConstraintTable) -> bool:
+    return all(
+        np.array_equal(getattr(a, f), getattr(b, f))
+        for f in ("x", "y", "slope_left", "slope_right", "contact_x", "kinks")
+    )
+
+
+@pytest.mark.parametrize("merge", [False, True])
+def test_parts_in_order_are_the_rows_concatenated(merge: bool) -> None:
+    rng = np.random.default_rng(3)
+    xs = np.sort(rng.uniform(0.0, 1.0, 400))
+    if merge:  # a node repeated to round-off: merged into one
+        xs[200] = xs[199] + 1e-16
+    rows = _rows(xs, rng)
+    a, b = rows[:150], rows[150:]
+    # rows 0..99 of a, all of b (source 1), then a's rest
+    parts = np.array([[0, 0, 100], [1, 0, b.shape[0]]], dtype=np.int64)
+    got = table_from_parts(a, b, parts, 0.0, 1e-3, 1e-3)
+    want = table_from_nodes(np.concatenate([a[:100], b]), 0.0, 1e-3, 1e-3)
+    assert _same(got, want)
+    assert got.x.size == (349 if merge else 350)
+
+
+def test_parts_out_of_order_are_sorted_and_nodes_out_of_order_refused() -> None:
+    rng = np.random.default_rng(4)
+    rows = _rows(np.sort(rng.uniform(0.0, 1.0, 100)), rng)
+    parts = np.array([[0, 50, 100], [0, 0, 50]], dtype=np.int64)  # the second half first
+    got = table_from_parts(rows, rows[:0], parts, 0.0, 1e-3, 1e-3)
+    assert _same(got, table_from_nodes(rows, 0.0, 1e-3, 1e-3))
+    with pytest.raises(ValueError, match="increasing"):
+        table_from_nodes(np.concatenate([rows[50:], rows[:50]]), 0.0, 1e-3, 1e-3)
+
+
+def _kink_jumps_by_search(t: ConstraintTable, a: float, b: float) -> tuple[np.ndarray, np.ndarray]:
+    kinks = t.kinks_between(a, b)
+    if kinks.size == 0:
+        return kinks, np.empty(0)
+    xk = kinks if t.period <= 0.0 else t.x[0] + np.mod(kinks - t.x[0], t.period)
+    at = np.clip(np.searchsorted(t.x, xk), 1, t.x.size - 1)
+    at = np.where(np.abs(t.x[at - 1] - xk) < np.abs(t.x[at] - xk), at - 1, at)
+    return kinks, np.abs(t.slope_right[at] - t.slope_left[at])
+
+
+@pytest.mark.parametrize(
+    "rail",
+    [
+        RailProfile.sampled(
+            np.linspace(-0.1, 6.1, 12401), 2e-6 * np.sin(np.linspace(0, 600, 12401))
+        ),
+        RailProfile.flat(),  # a flat wheel's table is periodic there: its kinks recur
+    ],
+    ids=["sampled", "periodic"],
+)
+def test_kink_jumps_are_read_at_each_kinks_node(rail: RailProfile) -> None:
+    t = tabulate_constraint(WheelOutline.ideal_flat(0.46, 0.05), rail, 0.0, 6.0, phase=1.0)
+    assert t.kinks.size > 0
+    for a, b in ((-1e-12, 6.0 + t.resolution), (2.0, 2.8), (-5.0, 20.0), (0.5, 0.5)):
+        k0, j0 = _kink_jumps_by_search(t, a, b)
+        k1, j1 = t.kink_jumps_between(a, b)
+        assert np.array_equal(k0, k1) and np.array_equal(j0, j1)
