@@ -35,20 +35,29 @@ def _same(a: ConstraintTable, b: ConstraintTable) -> bool:
     )
 
 
-@pytest.mark.parametrize("merge", [False, True])
-def test_parts_in_order_are_the_rows_concatenated(merge: bool) -> None:
+@pytest.mark.parametrize("merge", ["none", "inside", "across"])
+def test_parts_in_order_are_the_rows_concatenated(merge: str) -> None:
     rng = np.random.default_rng(3)
     xs = np.sort(rng.uniform(0.0, 1.0, 400))
-    if merge:  # a node repeated to round-off: merged into one
-        xs[200] = xs[199] + 1e-16
+    if merge == "inside":  # two distinct positions closer than the round-off: one node
+        xs[200] = xs[199] * (1.0 + 2e-14)
     rows = _rows(xs, rng)
     a, b = rows[:150], rows[150:]
-    # rows 0..99 of a, all of b (source 1), then a's rest
+    if merge == "across":  # b's first node on a's last one taken, to round-off
+        b[0, X] = a[99, X] * (1.0 + 2e-14)
+    # rows 0..99 of a, then all of b (source 1); a's rows 100..149 are left out
     parts = np.array([[0, 0, 100], [1, 0, b.shape[0]]], dtype=np.int64)
     got = table_from_parts(a, b, parts, 0.0, 1e-3, 1e-3)
     want = table_from_nodes(np.concatenate([a[:100], b]), 0.0, 1e-3, 1e-3)
     assert _same(got, want)
-    assert got.x.size == (349 if merge else 350)
+    assert got.x.size == (350 if merge == "none" else 349)
+
+
+def test_parts_must_be_row_ranges() -> None:
+    rows = _rows(np.linspace(0.0, 1.0, 5), np.random.default_rng(5))
+    for bad in ([[0, 0, 6]], [[2, 0, 1]], [[0, 3, 2]]):
+        with pytest.raises(ValueError, match="row range"):
+            table_from_parts(rows, rows[:0], np.array(bad), 0.0, 1e-3, 1e-3)
 
 
 def test_parts_out_of_order_are_sorted_and_nodes_out_of_order_refused() -> None:

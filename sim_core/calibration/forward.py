@@ -89,14 +89,15 @@ ELEMENTS_PER_BAY = 8
 """Rail elements per sleeper bay (0.08 m at 0.65 m): eight a bending wavelength at 5 kHz."""
 
 ABSORBER_BAYS = 6
-"""Absorbing bays each side (the twin's 12 are for flats' impacts, up to 16 kHz)."""
+"""Absorbing bays each side (the twin's 12 are for flats' impacts, up to 12 kHz)."""
 
 MARGIN_BAYS = 2
 """Plain bays each side of the stretch.
 
 With these four settings a reduction takes a tenth of a second to a second instead of seconds,
 and on the handed-over records (an independent solver's, true track) the channels change by
-less than 0.002 σ rms against the twin's own settings (16 kHz, 16 elements, 12 and 3 bays):
+less than 0.002 σ rms against the twin's own settings of the time (16 kHz, since 12 kHz;
+16 elements, 12 and 3 bays):
 docs/calibration.md."""
 
 STEP_TRAVEL = 1.0e-3

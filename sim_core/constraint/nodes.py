@@ -198,7 +198,8 @@ def stretch(a: float, b: float, step: float, period: float) -> tuple[float, floa
 def table_from_nodes(
     nodes: NDArray[np.float64], period: float, resolution: float, dx: float
 ) -> ConstraintTable:
-    """The table of node rows (sorted by x): close nodes merged, round-off slope jumps smoothed."""
+    """The table of node rows, x never decreasing (a ValueError if it does): nodes closer than
+    the position round-off merged, round-off slope jumps smoothed."""
     whole = np.array([[0, 0, nodes.shape[0]]], dtype=np.int64)
     return table_from_parts(nodes, _NO_ROWS, whole, period, resolution, dx, sort=False)
 
@@ -222,6 +223,13 @@ def table_from_parts(
     6 m rail's 31 000 round-wheel rows with a flat's few hundred: 2.5 MB copied and read
     twice, ~0.4 ms of a 4 ms table). Rows out of order (a later x below an earlier one)
     are concatenated and sorted first with ``sort``, refused without it."""
+    parts = np.asarray(parts, dtype=np.int64).reshape(-1, 3)
+    for src, lo, hi in parts.tolist():
+        rows = (a, b)[src].shape[0] if src in (0, 1) else -1
+        if rows < 0 or not 0 <= lo <= hi <= rows:
+            raise ValueError(
+                f"constraint table: part ({src}, {lo}, {hi}) is not a row range of a or b"
+            )
     cols = _table_columns(a, b, parts, float(period))
     if cols is None and not sort:
         raise ValueError("constraint table: node positions x must be increasing")

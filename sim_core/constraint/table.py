@@ -222,7 +222,7 @@ def _kink_jumps(
     n = x.size
     ordered = True
     for m in range(1, kinks.size):
-        if kinks[m] < kinks[m - 1]:
+        if not kinks[m] >= kinks[m - 1]:  # a NaN is out of order too
             ordered = False
             break
     order = np.arange(kinks.size) if ordered else np.argsort(kinks, kind="mergesort")

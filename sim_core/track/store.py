@@ -129,7 +129,7 @@ def touch(inputs: Hashable) -> bool:
     now = time.monotonic()
     last = _touched.get(inputs)
     if last is not None and now - last < TOUCH_INTERVAL:
-        return False  # before ``directory()``: its Path costs ~0.1 ms, paid every passage
+        return False  # before ``directory()``, which builds a Path from the environment
     d = directory()
     if d is None:
         return False
