@@ -93,7 +93,7 @@ def section_constraint(quick: bool) -> tuple[str, Any] | None:
 def section_track(quick: bool) -> tuple[str, Any]:
     from benchmarks import track_bench
 
-    res = track_bench.run()
+    res = track_bench.run(repeats=2 if quick else track_bench.REPEATS)
     return str(res["markdown"]), res
 
 
