@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections import OrderedDict
 from pathlib import Path
 
 import numpy as np
@@ -148,13 +149,34 @@ def test_an_entry_served_from_memory_is_still_marked_used(
     import os
 
     monkeypatch.setenv("RAILTWIN_TRACK_CACHE", str(tmp_path))
-    monkeypatch.setattr(store, "_touched", {})
+    monkeypatch.setattr(store, "_touched", OrderedDict())
     a = _fresh(1.5)
     (entry,) = tmp_path.glob(f"*{store.SUFFIX}")
     os.utime(entry, (1e9, 1e9))  # 2001: the least recently used of any cache
     assert reduce_track(TRACK, 0.0, 1.5, cutoff=1500.0) is a  # from memory, not the file
     assert entry.stat().st_mtime == 1e9  # touched with the write, not again within the interval
-    monkeypatch.setattr(store, "_touched", {})  # the interval has passed
+    monkeypatch.setattr(store, "_touched", OrderedDict())  # the interval has passed
     assert reduce_track(TRACK, 0.0, 1.5, cutoff=1500.0) is a
     assert entry.stat().st_mtime > 1e9
     assert not store.touch(("no such track",))  # no such entry: nothing, no error
+
+
+def test_touch_remembers_the_most_recent_entries_only(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``touch`` keeps the last touch of at most ``TOUCHED_KEPT`` entries (a calibrating twin
+    makes a new one each step): at the bound all are kept; one more forgets the oldest,
+    which is then touched again on its next use."""
+    monkeypatch.setenv("RAILTWIN_TRACK_CACHE", str(tmp_path))
+    monkeypatch.setattr(store, "_touched", OrderedDict())
+    keys = [("track", i) for i in range(store.TOUCHED_KEPT + 1)]
+    for k in keys:
+        (tmp_path / f"{store.key(k)}{store.SUFFIX}").write_bytes(b"x")
+    for k in keys[:-1]:
+        assert store.touch(k)
+    assert len(store._touched) == store.TOUCHED_KEPT
+    assert not store.touch(keys[0])  # remembered: within the interval, not touched again
+    assert store.touch(keys[-1])  # one more: the one touched longest ago (keys[0]) goes
+    assert len(store._touched) == store.TOUCHED_KEPT
+    assert keys[0] not in store._touched and keys[1] in store._touched
+    assert store.touch(keys[0])  # forgotten: touched again

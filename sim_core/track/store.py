@@ -36,6 +36,7 @@ import os
 import tempfile
 import time
 import zlib
+from collections import OrderedDict
 from collections.abc import Hashable
 from pathlib import Path
 from typing import Any
@@ -117,7 +118,12 @@ def load(name: str, fields: tuple[str, ...] = ()) -> dict[str, np.ndarray] | Non
 TOUCH_INTERVAL = 600.0
 """s between two touches of one entry by a process that serves it from memory (``touch``)."""
 
-_touched: dict[Hashable, float] = {}
+TOUCHED_KEPT = 64
+"""Entries whose last touch ``touch`` remembers, the most recent: a calibrating twin reduces
+a new track for each step of its estimate, and the memory would otherwise grow with them
+(a forgotten entry is merely touched again on its next use)."""
+
+_touched: OrderedDict[Hashable, float] = OrderedDict()
 
 
 def touch(inputs: Hashable) -> bool:
@@ -134,6 +140,9 @@ def touch(inputs: Hashable) -> bool:
     if d is None:
         return False
     _touched[inputs] = now
+    _touched.move_to_end(inputs)
+    while len(_touched) > TOUCHED_KEPT:
+        _touched.popitem(last=False)
     try:
         os.utime(d / f"{key(inputs)}{SUFFIX}")
     except OSError:  # gone or unwritable: the next read reduces it again
