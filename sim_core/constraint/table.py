@@ -216,9 +216,9 @@ def _kink_jumps(
     x1: float,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """:meth:`ConstraintTable.kink_jumps_between` of a non-periodic table: the kinks in
-    (x0, x1] in order, and |sr - sl| at the node nearest each (the first node at or above the
-    kink, or the one before it if nearer; never node 0: as ``np.searchsorted`` clipped to
-    1..n-1). Walks the nodes once (the kinks are in node order; sorted first if not)."""
+    (x0, x1] in order, and |sr - sl| at the node nearest each: the first node at or above the
+    kink (its index clipped to 1..n-1, as ``np.searchsorted``'s was), or the one before it if
+    that is nearer. Walks the nodes once (the kinks are in node order; sorted first if not)."""
     n = x.size
     ordered = True
     for m in range(1, kinks.size):

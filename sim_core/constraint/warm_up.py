@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import time
-from typing import Literal
+from typing import Literal, cast, get_args
 
 import numpy as np
 
@@ -23,7 +23,7 @@ their boxes, the rail's own profile). ``railtwin warm`` compiles them in two pro
 
 CONSTRAINT_PARTS: tuple[ConstraintPart, ...] = ("searches", "sweeps")
 
-RAIL_KINDS: tuple[RailKind, ...] = ("flat", "cosine", "step", "sampled")
+RAIL_KINDS = cast(tuple[RailKind, ...], get_args(RailKind))
 """Every rail kind (``sim_core.rail.RailKind``): the default warms the paths of all."""
 
 
