@@ -40,6 +40,14 @@ Importing ``sim_core`` therefore imports numba (every part of sim_core that comp
 anyway). Measured on W01: the first simulation 0.18 -> 0.08 s, ``railtwin diagnose`` 0.70
 -> 0.56 s. ``tests/test_numba_startup.py`` checks that a fresh process gives the same
 numbers either way, and compiles what the cache lacks, calling cached code.
+
+A fourth, for upgrades: numba's cache index is a pickle of each function's compiled
+signatures, and a signature names its argument types. When a new version of the code drops
+or renames such a type (a ``NamedTuple`` the stepper once took), unpickling the old index
+raises ``AttributeError`` before numba compares its source stamp, and the first call fails
+instead of compiling (numba issue 6522; seen here when the stepper's ``State`` became
+``Slots``). ``_tolerate_stale_cache_index`` reads such an index as empty: the function
+compiles, and saving it writes a fresh index over the stale one.
 """
 
 import os as _os
@@ -124,3 +132,28 @@ def _lean_cache_loads() -> None:
 
 
 _lean_cache_loads()
+
+
+def _tolerate_stale_cache_index() -> None:
+    try:
+        import pickle
+
+        from numba.core import caching
+    except ImportError:
+        return
+    index = getattr(caching, "IndexDataCacheFile", None)
+    load = getattr(index, "_load_index", None)
+    if index is None or load is None or getattr(index, "_railtwin_tolerant", False):
+        return
+
+    def _load_index(self: object) -> object:
+        try:
+            return load(self)
+        except (AttributeError, ImportError, pickle.UnpicklingError, EOFError):
+            return {}  # written by code that named a type this code no longer has: stale
+
+    index._load_index = _load_index
+    index._railtwin_tolerant = True
+
+
+_tolerate_stale_cache_index()

@@ -129,3 +129,90 @@ def test_lean_cache_loads_change_what_is_imported_not_what_is_computed(tmp_path:
     assert lean["lowered"] is False and full["lowered"] is True
     # ...and a function no cache holds is still compiled (numba's own path)
     assert lean["compiled"] == full["compiled"] == pytest.approx(5.0 + 1e8 * 1e-6)
+
+
+def test_a_cache_index_naming_a_type_the_code_no_longer_has_reads_as_stale(
+    tmp_path: Path,
+) -> None:
+    """An index pickled by older code whose signatures name a class that is gone (the stepper's
+    ``State`` once): numba would raise ``AttributeError`` on the first call; the function must
+    compile instead, and its save must replace the stale index."""
+    src = tmp_path / "cached_mod.py"
+    src.write_text(
+        textwrap.dedent(
+            """
+            import numba
+
+            @numba.njit(cache=True)
+            def twice(x):
+                return 2.0 * x
+            """
+        )
+    )
+    probe = textwrap.dedent(
+        """
+        import pickle, sys
+        from pathlib import Path
+        import sim_core  # noqa: F401  (the tolerant index)
+        import numba
+        sys.path.insert(0, sys.argv[1])
+        import cached_mod
+        assert cached_mod.twice(2.0) == 4.0  # compiled, index written
+        index = next(Path(sys.argv[2]).rglob("*.nbi"))
+        # rewrite the index as older code would have left it: its pickle names a class of a
+        # module that no longer defines it
+        with open(index, "rb") as f:
+            version = pickle.load(f)
+            stamp, overloads = pickle.loads(f.read())
+        class Gone:  # a type the next process will not find
+            pass
+        Gone.__module__ = "cached_mod"
+        Gone.__qualname__ = "GoneState"
+        cached_mod.GoneState = Gone
+        with open(index, "wb") as f:
+            pickle.dump(version, f, protocol=-1)
+            f.write(pickle.dumps((stamp, {**overloads, ("sig", Gone): "x.nbc"}), protocol=-1))
+        print(index)
+        """
+    )
+    cache = tmp_path / "cache"
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(cache)}
+    out = subprocess.run(
+        [sys.executable, "-c", probe, str(tmp_path), str(cache)],
+        env=env,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    index = Path(out.stdout.strip().splitlines()[-1])
+    second = textwrap.dedent(
+        """
+        import sys
+        import sim_core  # noqa: F401
+        sys.path.insert(0, sys.argv[1])
+        import cached_mod
+        print(cached_mod.twice(3.0))
+        """
+    )
+    run = subprocess.run(
+        [sys.executable, "-c", second, str(tmp_path)],
+        env=env,
+        capture_output=True,
+        text=True,
+    )
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.strip() == "6.0"
+    # the stale index was replaced: a process without the tolerance reads it too
+    plain = textwrap.dedent(
+        """
+        import pickle, sys
+        with open(sys.argv[1], "rb") as f:
+            pickle.load(f)
+            pickle.loads(f.read())
+        print("ok")
+        """
+    )
+    check = subprocess.run(
+        [sys.executable, "-c", plain, str(index)], capture_output=True, text=True
+    )
+    assert check.stdout.strip() == "ok", check.stderr
