@@ -83,3 +83,52 @@ def test_coefficients_match_extended_precision(tau: float) -> None:
     scale = np.repeat(scale, 2, axis=0)
     err = np.abs(co.astype(np.float64) - ref) / scale
     assert float(err.max()) < 4 * np.finfo(np.float32).eps
+
+
+@pytest.mark.parametrize("tau", [2e-5, 1e-9])
+def test_merged_rows_fold_the_pending_part(tau: float) -> None:
+    """Rows 6-7 (given ``CO_ROWS`` rows): e^{λτ}·τφ₂ + τ(φ₁ − φ₂), the coefficient of a
+    nominal step after one of the same length, against the extended-precision reference."""
+    w = 2 * np.pi * np.geomspace(1.0, 2e5, 200)
+    lam = np.concatenate([-w * 0.05 + 1j * w, -np.geomspace(1e-1, 1e6, 20) + 0j])
+    md = _modes(lam)
+    co = np.empty((st.CO_ROWS, lam.size), dtype=st.MODE_DTYPE)
+    st.coefficients(md, tau, co)
+    ref = _reference(md.lam_r.astype(np.float64) + 1j * md.lam_i.astype(np.float64), tau)
+    e = ref[0] + 1j * ref[1]
+    merged = e * (ref[4] + 1j * ref[5]) + (ref[2] + 1j * ref[3])
+    got = co[6].astype(np.float64) + 1j * co[7].astype(np.float64)
+    assert float(np.max(np.abs(got - merged) / np.abs(merged))) < 4 * np.finfo(np.float32).eps
+    # and the first six rows are those of a six-row call
+    six = np.empty((6, lam.size), dtype=st.MODE_DTYPE)
+    st.coefficients(md, tau, six)
+    np.testing.assert_array_equal(co[:6], six)
+
+
+def test_merged_step_equals_the_step_with_its_pending_part() -> None:
+    """``predict`` on a nominal step after one of the same length: the merged rows give the
+    same prediction as adding the pending τφ₂·R·F to the state first (to single precision)."""
+    rng = np.random.default_rng(5)
+    m = 64
+    lam = -rng.uniform(10, 3e3, m) + 1j * 2 * np.pi * rng.uniform(50, 1.2e4, m)
+    md = _modes(lam)
+    row_r = rng.normal(size=(4, m)).astype(st.MODE_DTYPE) * 1e-4
+    row_i = rng.normal(size=(4, m)).astype(st.MODE_DTYPE) * 1e-4
+    wk = np.zeros((st.WORK_ROWS, m), dtype=st.MODE_DTYPE)
+    st.coefficients(md, 2e-5, wk[st.CO_NOMINAL : st.CO_NOMINAL + st.CO_ROWS])
+    z, p, ha, hb = (st.FIRST_STATE + 2 * k for k in range(4))
+    wk[z : z + 2] = rng.normal(size=(2, m)) * 1e-6
+    wk[ha : ha + 2] = rng.normal(size=(2, m)) * 1e-4
+    n = np.array([0.3, 0.01, 0.7, -0.02])
+    force = 9.0e4
+    out = {}
+    for merged in (True, False):
+        sl = st.Slots(z, p, ha, hb, st.CO_NOMINAL + 4)
+        w, b = st.predict(0, n, row_r, row_i, wk, st.CO_NOMINAL, sl, force, merged)
+        out[merged] = (w, b, wk[p : p + 2].astype(np.float64).copy(), wk[hb : hb + 2].copy())
+    (w1, b1, p1, h1), (w0, b0, p0, h0) = out[True], out[False]
+    np.testing.assert_array_equal(h1, h0)  # R at the step's end: the same arithmetic
+    size = float(np.max(np.abs(p0)))
+    assert float(np.max(np.abs(p1 - p0))) < 1e-5 * size
+    assert abs(w1 - w0) < 1e-5 * float(np.sum(np.abs(p0)) * np.max(np.abs(h0)))
+    assert b1 == pytest.approx(b0, rel=1e-6)

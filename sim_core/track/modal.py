@@ -63,6 +63,7 @@ from sim_core.track.beam import (
     deflection_shapes,
     shear_ratio,
 )
+from sim_core.track.lanes import PAD_LAMBDA, padded_modes
 from sim_core.track.layout import ABSORBER_BAYS, ELEMENTS_PER_BAY, MARGIN_BAYS, TrackLayout, layout
 from sim_core.track.spec import Crib, Support, TrackError, TrackSpec
 from sim_core.track.stepper import MODE_DTYPE, Modes
@@ -134,17 +135,18 @@ class ModalTrack:
     @functools.cached_property
     def arrays(self) -> Modes:
         """The compiled stepper's view: real and imaginary parts apart, the modes' arrays in
-        ``MODE_DTYPE`` (single precision)."""
+        ``MODE_DTYPE`` (single precision), padded with inert modes to a multiple of
+        ``lanes.LANES`` and aligned to cache lines (``sim_core.track.lanes``)."""
 
         def c(a: NDArray[np.float64]) -> NDArray[np.float64]:
             return np.ascontiguousarray(a, dtype=np.float64)
 
-        def s(a: NDArray[Any]) -> NDArray[np.floating[Any]]:
-            return np.ascontiguousarray(a, dtype=MODE_DTYPE)
+        def s(a: NDArray[Any], fill: float = 0.0) -> NDArray[np.floating[Any]]:
+            return padded_modes(a, MODE_DTYPE, fill)
 
         rows = self.crib_rows
         return Modes(
-            s(self.lam.real),
+            s(self.lam.real, PAD_LAMBDA),
             s(self.lam.imag),
             s(self.rows.real),
             s(self.rows.imag),

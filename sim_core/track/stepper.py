@@ -25,7 +25,10 @@ the modes are plain float arithmetic the compiler vectorises. The modes are
 scaled so that one row R(x) is both a mode's deflection and its load
 (``sim_core.track.modal``), and a step is one pass over the modes: the end force's
 part of a step, τφ₂·R_b·F_b, is not added when the step is taken but when the
-next one reads the state (ζ = p + b·R·F, kept as p, R, b and F).
+next one reads the state (ζ = p + b·R·F, kept as p, R, b and F). The row R at the step's
+end is kept for the next step's start, and a step of the nominal length after one of the
+same length folds the pending part into its coefficients:
+p' = e^{λτ}·p + (e^{λτ}·b + τ(φ₁ − φ₂))·R·F (rows 6-7 of the nominal coefficients).
 
 Worked example: ``sim_core.track.passage.simulate_on_track`` is the only caller.
 """
@@ -49,9 +52,13 @@ N_COLS = 10
 # extrema
 E_PEAK_FORCE, E_MIN_FORCE, E_PEAK_DELTA, E_T_FLIGHT, E_STEPS = range(5)
 N_EXTREMA = 5
-WORK_ROWS = 16
-"""Rows of ``run``'s work array (one column a mode): the nominal and a trial step's
-coefficients (6 each), the pending τφ₂ (2), a trial's prediction (2)."""
+CO_ROWS = 8
+"""Rows ``coefficients`` fills when given room for them: with 8, the merged pair too."""
+WORK_ROWS = 24
+"""Rows of ``run``'s work array (one column a mode): the nominal step's coefficients (8: the
+six of ``coefficients`` and the merged e^{λτ}·τφ₂ + τ(φ₁ − φ₂)), a trial step's (6), the
+pending τφ₂ (2), and four pairs of state (``Slots``: the modes at t and a trial's
+prediction, R at t and at a trial's end)."""
 
 EV_LOSS, EV_CONTACT, EV_YIELD, EV_UNYIELD = 0, 1, 2, 3
 OK, TOO_MANY_STEPS, TOO_MANY_TRANSITIONS = 0, 1, 2
@@ -81,7 +88,7 @@ SERIES_LIMIT = 1e-3
 _NO_REFCOUNTS: dict[str, Any] = {"_nrt": False}
 """``run`` is compiled without numba's runtime: it allocates nothing (the caller passes its work
 arrays), and the reference counts numba would otherwise keep on every array it reads from
-the ``Modes``, ``Table`` and ``State`` tuples (atomic increments and decrements, ~60 a step)
+the ``Modes`` and ``Table`` tuples (atomic increments and decrements, ~60 a step)
 cost more than the stepping itself on a small model (measured: 8.7 -> 2.3 ms on the site
 case with 4 modes; the private numba option of the pinned numba)."""
 
@@ -90,8 +97,10 @@ _LOOP_MATH = {"reassoc", "contract"}
 multiplies fused with adds; no assumption that values are finite (the loop compares with ±inf)."""
 
 _kernel = numba.njit(cache=True, fastmath=_LOOP_MATH, **_NO_REFCOUNTS)
-"""``run`` and the functions it calls per step or sample: arrays pass between them without
-reference counts (inlining them instead compiles 3x slower)."""
+"""``run`` and the loops it calls per step or sample (``predict``, ``coefficients``,
+``_rail_at``): arrays pass between them without reference counts, and as few as possible (an
+array is seven or nine words of arguments: the state lives in one work array, addressed by
+``Slots``). ``trial`` is inlined into ``run``; inlining the loops as well compiles 3x slower."""
 
 
 class Modes(NamedTuple):
@@ -101,7 +110,8 @@ class Modes(NamedTuple):
     lam_i: NDArray[np.floating[Any]]
     row_r: NDArray[np.floating[Any]]
     """(rail dofs of the kept elements, modes): R, each mode's deflection and load per unit
-    downward force at a dof (weights folded in)."""
+    downward force at a dof (weights folded in). The modes' arrays are padded with inert modes
+    to whole cache lines (``sim_core.track.lanes``)."""
     row_i: NDArray[np.floating[Any]]
     ex: NDArray[np.float64]
     el: NDArray[np.float64]
@@ -129,32 +139,45 @@ class Wheel(NamedTuple):
     speed: float
 
 
-class State(NamedTuple):
-    """The modes at the last step's end, t, and a trial step's end (one entry a mode).
+class Slots(NamedTuple):
+    """Where the modes' state lies in the work array (row indices, each the real part's row,
+    the imaginary part's the next): the modes at the last step's end t, and a trial's end.
 
-    ζ(t) = p + b·R(x(t))·F: the last step's prediction p (zr, zi) without its end force,
-    that step's τφ₂ b (the nominal coefficients' row, or a copy in (br, bi)) and the force F
-    at t. A trial writes its own prediction into (pr, pi); taking the step swaps them in.
-    ``nsh``, ``nsa``: the four shape functions at a trial step's end and start."""
+    ζ(t) = p + b·R(x(t))·F: the last step's prediction p (``z``) without its end force, that
+    step's τφ₂ b (``b``: the nominal coefficients' row 4, or ``PENDING``, a copy), R at x(t)
+    (``ha``) and the force F at t. A trial writes its prediction into ``p`` and R at its end
+    into ``hb``; taking the step swaps them with ``z`` and ``ha``. Rows, not arrays: the
+    compiled calls per step then pass one array and a few integers (a tuple of ten arrays
+    cost ~0.3 µs a step in argument copies alone)."""
 
-    zr: NDArray[np.floating[Any]]
-    zi: NDArray[np.floating[Any]]
-    br: NDArray[np.floating[Any]]
-    bi: NDArray[np.floating[Any]]
-    pr: NDArray[np.floating[Any]]
-    pi: NDArray[np.floating[Any]]
-    nsh: NDArray[np.float64]
-    nsa: NDArray[np.float64]
+    z: int
+    p: int
+    ha: int
+    hb: int
+    b: int
+
+
+CO_NOMINAL = 0
+"""Work rows 0-7: the nominal step's coefficients (``CO_ROWS``)."""
+CO_TRIAL = CO_ROWS
+"""Work rows 8-13: a trial step's coefficients (6)."""
+PENDING = CO_TRIAL + 6
+"""Work rows 14-15: the pending τφ₂, copied when the nominal coefficients change under it."""
+FIRST_STATE = PENDING + 2
+"""Work rows 16-23: the four state pairs of ``Slots`` (z, p, ha, hb)."""
 
 
 @_kernel
 def coefficients(md: Modes, tau: float, co: NDArray[np.float64]) -> None:
-    """Rows of ``co``: Re, Im of e^{λτ}, τ(φ₁ − φ₂)(λτ) and τ·φ₂(λτ), by series where λτ is small.
+    """Rows of ``co``: Re, Im of e^{λτ}, τ(φ₁ − φ₂)(λτ) and τ·φ₂(λτ), by series where λτ is small;
+    with ``CO_ROWS`` rows, also Re, Im of e^{λτ}·τφ₂ + τ(φ₁ − φ₂) (a nominal step after one of
+    the same length: its pending τφ₂ folded in).
 
     In real arithmetic: e^{λτ} from one real exp, cos and sin; φ₁ = (e^z − 1)/z and
     φ₂ = (φ₁ − 1)/z as products with conj(z)/|z|² (numba's complex exp and divisions took
     ~20 % longer; the site case calls this ~50 times, for its events and stops)."""
     lim2 = SERIES_LIMIT * SERIES_LIMIT
+    merged = co.shape[0] >= CO_ROWS
     for j in range(md.lam_r.size):
         a = md.lam_r[j] * tau
         b = md.lam_i[j] * tau
@@ -181,6 +204,9 @@ def coefficients(md: Modes, tau: float, co: NDArray[np.float64]) -> None:
         co[3, j] = tau * (f1i - f2i)
         co[4, j] = tau * f2r
         co[5, j] = tau * f2i
+        if merged:
+            co[6, j] = tau * (er * f2r - ei * f2i + f1r - f2r)
+            co[7, j] = tau * (er * f2i + ei * f2r + f1i - f2i)
 
 
 @numba.njit(cache=True, inline="always")
@@ -228,40 +254,56 @@ def residual(e: int, xi: float, n: NDArray[np.float64], md: Modes) -> float:
 
 @_kernel
 def predict(
-    ea: int,
-    na: NDArray[np.float64],
     e: int,
     n: NDArray[np.float64],
-    md: Modes,
-    co: NDArray[np.float64],
-    lr: NDArray[np.float64],
-    li: NDArray[np.float64],
-    sc: State,
+    row_r: NDArray[Any],
+    row_i: NDArray[Any],
+    wk: NDArray[Any],
+    co: int,
+    sl: Slots,
     fa: float,
+    merged: bool,
 ) -> tuple[float, float]:
-    """The modes at the step's end without its end force, into (pr, pi); returns (their
-    deflection there, its compliance Σ Re(τφ₂·R²)). The step starts in element ``ea`` (shape
-    functions ``na``) with the last step's τφ₂ (lr, li) pending, and ends in ``e`` (``n``).
+    """A step's modes at its end without its end force, into the work rows ``sl.p``, and R
+    there into ``sl.hb``; returns (their deflection there, its compliance Σ Re(τφ₂·R²)).
 
-    R at both ends is read from the element rows, not kept: on all but one step in ~50 both
-    ends lie in one element, whose rows are read once."""
-    d = 2 * ea
-    a0, a1, a2, a3 = md.row_r[d], md.row_r[d + 1], md.row_r[d + 2], md.row_r[d + 3]
-    c0, c1, c2, c3 = md.row_i[d], md.row_i[d + 1], md.row_i[d + 2], md.row_i[d + 3]
+    The step starts at the state's x (R there: rows ``sl.ha``) with τφ₂ (rows ``sl.b``)
+    pending and its coefficients in rows ``co``..; it ends in element ``e`` (shape functions
+    ``n``). With ``merged`` (a nominal step after one of the same length: the pending τφ₂ is
+    the coefficients' own row 4) the pending part comes folded into rows 6-7, a third fewer
+    operations a mode."""
     d = 2 * e
-    r0, r1, r2, r3 = md.row_r[d], md.row_r[d + 1], md.row_r[d + 2], md.row_r[d + 3]
-    i0, i1, i2, i3 = md.row_i[d], md.row_i[d + 1], md.row_i[d + 2], md.row_i[d + 3]
-    ft = sc.zr.dtype.type
-    m0, m1, m2, m3 = ft(na[0] * fa), ft(na[1] * fa), ft(na[2] * fa), ft(na[3] * fa)
+    r0, r1, r2, r3 = row_r[d], row_r[d + 1], row_r[d + 2], row_r[d + 3]
+    i0, i1, i2, i3 = row_i[d], row_i[d + 1], row_i[d + 2], row_i[d + 3]
+    ft = wk.dtype.type
+    f = ft(fa)
     n0, n1, n2, n3 = ft(n[0]), ft(n[1]), ft(n[2]), ft(n[3])
-    er, ei, ar, ai, br, bi = co[0], co[1], co[2], co[3], co[4], co[5]
-    zr, zi, pr, pi = sc.zr, sc.zi, sc.pr, sc.pi
+    er, ei, ar, ai, br, bi = wk[co], wk[co + 1], wk[co + 2], wk[co + 3], wk[co + 4], wk[co + 5]
+    zr, zi, pr, pi = wk[sl.z], wk[sl.z + 1], wk[sl.p], wk[sl.p + 1]
+    har, hai, hbr, hbi = wk[sl.ha], wk[sl.ha + 1], wk[sl.hb], wk[sl.hb + 1]
     w = ft(0.0)
     b = ft(0.0)
     two = ft(2.0)
+    if merged:
+        cr, ci = wk[co + 6], wk[co + 7]
+        for j in range(zr.size):
+            u_r = har[j] * f
+            u_i = hai[j] * f
+            p_r = er[j] * zr[j] - ei[j] * zi[j] + cr[j] * u_r - ci[j] * u_i
+            p_i = er[j] * zi[j] + ei[j] * zr[j] + cr[j] * u_i + ci[j] * u_r
+            pr[j] = p_r
+            pi[j] = p_i
+            h_r = n0 * r0[j] + n1 * r1[j] + n2 * r2[j] + n3 * r3[j]
+            h_i = n0 * i0[j] + n1 * i1[j] + n2 * i2[j] + n3 * i3[j]
+            hbr[j] = h_r
+            hbi[j] = h_i
+            w += h_r * p_r - h_i * p_i
+            b += br[j] * (h_r * h_r - h_i * h_i) - two * bi[j] * (h_r * h_i)
+        return float(w), float(b)
+    lr, li = wk[sl.b], wk[sl.b + 1]
     for j in range(zr.size):
-        u_r = m0 * a0[j] + m1 * a1[j] + m2 * a2[j] + m3 * a3[j]
-        u_i = m0 * c0[j] + m1 * c1[j] + m2 * c2[j] + m3 * c3[j]
+        u_r = har[j] * f
+        u_i = hai[j] * f
         z_r = zr[j] + lr[j] * u_r - li[j] * u_i
         z_i = zi[j] + lr[j] * u_i + li[j] * u_r
         p_r = er[j] * z_r - ei[j] * z_i + ar[j] * u_r - ai[j] * u_i
@@ -270,43 +312,54 @@ def predict(
         pi[j] = p_i
         h_r = n0 * r0[j] + n1 * r1[j] + n2 * r2[j] + n3 * r3[j]
         h_i = n0 * i0[j] + n1 * i1[j] + n2 * i2[j] + n3 * i3[j]
+        hbr[j] = h_r
+        hbi[j] = h_i
         w += h_r * p_r - h_i * p_i
         b += br[j] * (h_r * h_r - h_i * h_i) - two * bi[j] * (h_r * h_i)
     return float(w), float(b)
 
 
 @_kernel
-def _rail_at(
+def _fill_row(
     e: int,
     n: NDArray[np.float64],
-    md: Modes,
-    lr: NDArray[np.float64],
-    li: NDArray[np.float64],
-    sc: State,
-    fa: float,
-) -> tuple[float, float]:
-    """The rail's deflection and velocity at the last step's end x (element ``e``, shape
-    functions ``n``), Σ Re(R·ζ) and Σ Re(R·ζ̇), with ζ = p + b·R·F (b: lr, li);
-    ζ̇ = λζ + R·F into the state's (pr, pi)."""
+    row_r: NDArray[Any],
+    row_i: NDArray[Any],
+    hr: NDArray[Any],
+    hi: NDArray[Any],
+) -> None:
+    """R at the point of element ``e`` with shape functions ``n``, into (hr, hi)."""
     d = 2 * e
-    r0, r1, r2, r3 = md.row_r[d], md.row_r[d + 1], md.row_r[d + 2], md.row_r[d + 3]
-    i0, i1, i2, i3 = md.row_i[d], md.row_i[d + 1], md.row_i[d + 2], md.row_i[d + 3]
-    ft = sc.zr.dtype.type
+    r0, r1, r2, r3 = row_r[d], row_r[d + 1], row_r[d + 2], row_r[d + 3]
+    i0, i1, i2, i3 = row_i[d], row_i[d + 1], row_i[d + 2], row_i[d + 3]
+    ft = hr.dtype.type
     n0, n1, n2, n3 = ft(n[0]), ft(n[1]), ft(n[2]), ft(n[3])
+    for j in range(hr.size):
+        hr[j] = n0 * r0[j] + n1 * r1[j] + n2 * r2[j] + n3 * r3[j]
+        hi[j] = n0 * i0[j] + n1 * i1[j] + n2 * i2[j] + n3 * i3[j]
+
+
+@_kernel
+def _rail_at(
+    lam_r: NDArray[Any], lam_i: NDArray[Any], wk: NDArray[Any], sl: Slots, fa: float
+) -> tuple[float, float]:
+    """The rail's deflection and velocity at the state's x (R there: rows ``sl.ha``),
+    Σ Re(R·ζ) and Σ Re(R·ζ̇), with ζ = p + b·R·F; ζ̇ = λζ + R·F into the rows ``sl.p``."""
+    ft = wk.dtype.type
     f = ft(fa)
-    zr, zi = sc.zr, sc.zi
-    dr, di = sc.pr, sc.pi
+    zr, zi, dr, di = wk[sl.z], wk[sl.z + 1], wk[sl.p], wk[sl.p + 1]
+    hr, hi, lr, li = wk[sl.ha], wk[sl.ha + 1], wk[sl.b], wk[sl.b + 1]
     wv = ft(0.0)
     vw = ft(0.0)
     for j in range(zr.size):
-        h_r = n0 * r0[j] + n1 * r1[j] + n2 * r2[j] + n3 * r3[j]
-        h_i = n0 * i0[j] + n1 * i1[j] + n2 * i2[j] + n3 * i3[j]
+        h_r = hr[j]
+        h_i = hi[j]
         u_r = h_r * f
         u_i = h_i * f
         z_r = zr[j] + lr[j] * u_r - li[j] * u_i
         z_i = zi[j] + lr[j] * u_i + li[j] * u_r
-        d_r = md.lam_r[j] * z_r - md.lam_i[j] * z_i + u_r
-        d_i = md.lam_r[j] * z_i + md.lam_i[j] * z_r + u_i
+        d_r = lam_r[j] * z_r - lam_i[j] * z_i + u_r
+        d_i = lam_r[j] * z_i + lam_i[j] * z_r + u_i
         dr[j] = d_r
         di[j] = d_i
         wv += h_r * z_r - h_i * z_i
@@ -369,15 +422,15 @@ def _wheel_at(y: float, v: float, fa: float, st: float, wh: Wheel) -> float:
     return y + st * v - wh.load * st * st / (2.0 * wh.mass) + st * st * fa / (3.0 * wh.mass)
 
 
-@_kernel
+@numba.njit(cache=True, inline="always")
 def trial(
     md: Modes,
     tab: Table,
     wh: Wheel,
-    co: NDArray[np.float64],
-    lr: NDArray[np.float64],
-    li: NDArray[np.float64],
-    sc: State,
+    wk: NDArray[Any],
+    co: int,
+    sl: Slots,
+    nsh: NDArray[np.float64],
     t: float,
     st: float,
     y: float,
@@ -385,18 +438,16 @@ def trial(
     fa: float,
     he: int,
     ht: int,
+    merged: bool,
 ) -> tuple[float, float, float, int, int]:
-    """A step of length ``st`` (coefficients ``co``; the last step's τφ₂ lr, li pending) up to
-    its end force: fills the state's (pr, pi); returns (δ*, κ, the wheel's height without the
-    end force, element, table hints)."""
-    nsh = sc.nsh
-    xa = wh.speed * t
-    ea = element_at(xa, md.ex, he)
-    shapes(xa, ea, md, sc.nsa)
+    """A step of length ``st`` (coefficients in the work rows ``co``..; see ``predict``) up to
+    its end force: fills the slots ``sl.p`` and ``sl.hb``; returns (δ*, κ, the wheel's height
+    without the end force, element, table hints). Inlined into ``run``: called on its own it
+    took more in argument copies (~250 words a call) than in its arithmetic."""
     xb = wh.speed * (t + st)
-    he = element_at(xb, md.ex, ea)
+    he = element_at(xb, md.ex, he)
     xi = shapes(xb, he, md, nsh)
-    w0, bc = predict(ea, sc.nsa, he, nsh, md, co, lr, li, sc, fa)
+    w0, bc = predict(he, nsh, md.row_r, md.row_i, wk, co, sl, fa, merged)
     ypred = _wheel_at(y, v, fa, st, wh)
     ckb, _, ht = table_eval(tab.x, tab.y, tab.slope_left, tab.slope_right, tab.period, xb, ht)
     kappa = st * st / (6.0 * wh.mass) - bc + residual(he, xi, nsh, md)
@@ -424,9 +475,9 @@ def run(
     h_max: float,
     stops: NDArray[np.float64],
     sample_t: NDArray[np.float64],
-    zr: NDArray[np.float64],
-    zi: NDArray[np.float64],
-    work: NDArray[np.float64],
+    zr: NDArray[np.floating[Any]],
+    zi: NDArray[np.floating[Any]],
+    work: NDArray[np.floating[Any]],
     shp: NDArray[np.float64],
     y0: float,
     v0: float,
@@ -450,16 +501,16 @@ def run(
     """
     m = md.lam_r.size
     nc = md.crib_lo.size
-    co_n = work[0:6]
-    co_t = work[6:12]
-    work[12:14] = 0.0
-    sc = State(zr, zi, work[12], work[13], work[14], work[15], shp[0], shp[1])
+    co_n = work[CO_NOMINAL : CO_NOMINAL + CO_ROWS]
     # the pending τφ₂: zero at t0 (ζ(t0) = p), then the last step's, read from the nominal
-    # coefficients while the last step was nominal and they have not changed since
-    lr = sc.br
-    li = sc.bi
+    # coefficients' row 4 while the last step was nominal and they have not changed since
+    work[PENDING : PENDING + 2] = 0.0
+    sl = Slots(FIRST_STATE, FIRST_STATE + 2, FIRST_STATE + 4, FIRST_STATE + 6, PENDING)
+    for j in range(m):
+        work[sl.z, j] = zr[j]
+        work[sl.z + 1, j] = zi[j]
     pending_nominal = False
-    nsh = sc.nsh
+    nsh = shp
     tau_n = -1.0
     he = 0
     ht = 0
@@ -475,7 +526,8 @@ def run(
     xi = shapes(x, he, md, nsh)
     contact = fa > 0.0
     ck, _, ht = table_eval(tab.x, tab.y, tab.slope_left, tab.slope_right, tab.period, x, ht)
-    w_a, _ = _rail_at(he, nsh, md, lr, li, sc, fa)
+    _fill_row(he, nsh, md.row_r, md.row_i, work[sl.ha], work[sl.ha + 1])
+    w_a, _ = _rail_at(md.lam_r, md.lam_i, work, sl, fa)
     delta_a = -y + ck + w_a - residual(he, xi, nsh, md) * fa
     plastic = plastic_law and contact and delta_a > wh.d_y
     n_tr = 0
@@ -507,10 +559,9 @@ def run(
             if abs(tau - tau_n) > 1e-9 * tau:
                 if pending_nominal:  # keep the pending τφ₂ before the nominal row changes
                     for j in range(m):
-                        sc.br[j] = co_n[4, j]
-                        sc.bi[j] = co_n[5, j]
-                    lr = sc.br
-                    li = sc.bi
+                        work[PENDING, j] = co_n[4, j]
+                        work[PENDING + 1, j] = co_n[5, j]
+                    sl = Slots(sl.z, sl.p, sl.ha, sl.hb, PENDING)
                     pending_nominal = False
                 coefficients(md, tau, co_n)
                 tau_n = tau
@@ -520,15 +571,29 @@ def run(
                 remaining = target - t
             nominal = abs(remaining - tau_n) <= 1e-9 * tau_n
             while remaining > tol_t:
-                co = co_n
+                co = CO_NOMINAL
                 used_n = True
                 if not nominal:
-                    coefficients(md, remaining, co_t)
-                    co = co_t
+                    coefficients(md, remaining, work[CO_TRIAL : CO_TRIAL + 6])
+                    co = CO_TRIAL
                     used_n = False
                 st = remaining
                 dstar, kappa, ypred, he, ht = trial(
-                    md, tab, wh, co, lr, li, sc, t, st, y, v, fa, he, ht
+                    md,
+                    tab,
+                    wh,
+                    work,
+                    co,
+                    sl,
+                    nsh,
+                    t,
+                    st,
+                    y,
+                    v,
+                    fa,
+                    he,
+                    ht,
+                    used_n and pending_nominal,
                 )
                 fb, delta_b = _end_delta(dstar, kappa, contact, wh, fa)
                 # the first event on the way, as a function g of the step length rising through 0
@@ -557,9 +622,9 @@ def run(
                         s = lo - g_lo * (hi - lo) / (g_hi - g_lo)
                         if not (lo < s < hi):
                             s = 0.5 * (lo + hi)
-                        coefficients(md, s, co_t)
+                        coefficients(md, s, work[CO_TRIAL : CO_TRIAL + 6])
                         ds, ks, _, he, ht = trial(
-                            md, tab, wh, co_t, lr, li, sc, t, s, y, v, fa, he, ht
+                            md, tab, wh, work, CO_TRIAL, sl, nsh, t, s, y, v, fa, he, ht, False
                         )
                         if with_force:
                             _, ds = _end_delta(ds, ks, True, wh, fa)
@@ -579,28 +644,22 @@ def run(
                         if hi - lo <= tol_event:
                             break
                     st = hi  # the event's far side: the step ends where it has happened
-                    coefficients(md, st, co_t)
+                    coefficients(md, st, work[CO_TRIAL : CO_TRIAL + 6])
                     dstar, kappa, ypred, he, ht = trial(
-                        md, tab, wh, co_t, lr, li, sc, t, st, y, v, fa, he, ht
+                        md, tab, wh, work, CO_TRIAL, sl, nsh, t, st, y, v, fa, he, ht, False
                     )
                     fb, delta_b = _end_delta(dstar, kappa, contact and with_force, wh, fa)
                     if not with_force:
                         delta_b = 0.0
-                    co = co_t
+                    co = CO_TRIAL
                     used_n = False
                 # take the step: its prediction becomes the state, its τφ₂ the pending one
-                sc = State(sc.pr, sc.pi, sc.br, sc.bi, sc.zr, sc.zi, nsh, sc.nsa)
-                if used_n:
-                    lr = co_n[4]
-                    li = co_n[5]
-                    pending_nominal = True
-                else:
+                sl = Slots(sl.p, sl.z, sl.hb, sl.ha, CO_NOMINAL + 4 if used_n else PENDING)
+                pending_nominal = used_n
+                if not used_n:
                     for j in range(m):
-                        sc.br[j] = co[4, j]
-                        sc.bi[j] = co[5, j]
-                    lr = sc.br
-                    li = sc.bi
-                    pending_nominal = False
+                        work[PENDING, j] = work[co + 4, j]
+                        work[PENDING + 1, j] = work[co + 5, j]
                 y = ypred + st * st * fb / (6.0 * wh.mass)
                 v = v - wh.load * st / wh.mass + st * (fa + fb) / (2.0 * wh.mass)
                 if not contact:
@@ -654,8 +713,8 @@ def run(
             xi = shapes(xs, he, md, nsh)
             # the state at t (R there is the last step's end row): ζ = p + b·R·F, and the rail's
             # deflection and velocity under the wheel, Σ Re(R·ζ) and Σ Re(R·(λζ + R·F))
-            wv, vw = _rail_at(he, nsh, md, lr, li, sc, fa)
-            dr, di = sc.pr, sc.pi
+            wv, vw = _rail_at(md.lam_r, md.lam_i, work, sl, fa)
+            dr, di = work[sl.p], work[sl.p + 1]
             rr = residual(he, xi, nsh, md)
             ck, _, ht = table_eval(
                 tab.x, tab.y, tab.slope_left, tab.slope_right, tab.period, xs, ht
