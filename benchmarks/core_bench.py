@@ -238,7 +238,8 @@ def _peer_entry(res: scipy_peer.PeerResult, sim: float, our_wall: float) -> dict
 def bench_passage(
     key: str, title: str, table: ConstraintTable, spec: PassageSpec, repeats: int, peer: bool = True
 ) -> dict[str, Any]:
-    """Best-of-``repeats`` wall time of one passage (after a warm-up run) and its SciPy peers."""
+    """Best-of-``repeats`` wall time of one passage (after a warm-up run; with peers, timed
+    again after them) and its SciPy peers."""
     simulate_passage(table, spec)  # warm-up (compiles on a cold cache)
     best, walls, out = _best_of(lambda: simulate_passage(table, spec), repeats)
     sim = spec.duration
@@ -256,7 +257,6 @@ def bench_passage(
     res["agreement_tight"] = tight_agreement(key, table, spec, out)
     if peer:
         ev = scipy_peer.solve_events(table, spec)
-        res["scipy_events"] = _peer_entry(ev, sim, best)
         res["agreement"] = agreement(out, ev)
         _log(f"{key}: scipy with events {ev.wall:.2f} s")
         if key.startswith("a") and spec.duration > AGREEMENT_PERIODS / RESONANCE_FREQUENCY * 1.001:
@@ -265,6 +265,19 @@ def bench_passage(
             res["agreement_short"] = agreement(simulate_passage(table, short), ev_s)
             res["agreement_short"]["window"] = f"first {AGREEMENT_PERIODS} periods"
         pl = scipy_peer.solve_plain(table, spec)
+        # railtwin again after its peers, which take seconds: the host's speed moves by up to
+        # 1.6x within minutes, and railtwin's milliseconds timed only before them could fall
+        # in a slow phase the peer's seconds average out (a seed's ratio moved 419-721x)
+        again, walls_after, _ = _best_of(lambda: simulate_passage(table, spec), repeats)
+        best = min(best, again)
+        res.update(
+            wall_s=best,
+            walls_s=walls + walls_after,
+            rtf=sim / best,
+            **_passage_stats(out, sim, best),
+        )
+        _log(f"{key}: railtwin again after its peers {again * 1e3:.2f} ms")
+        res["scipy_events"] = _peer_entry(ev, sim, best)
         res["scipy_plain"] = _peer_entry(pl, sim, best)
         res["scipy_plain"]["peak_rel_diff"] = abs(out.peak_force - pl.peak_force) / out.peak_force
     return res
@@ -352,6 +365,8 @@ def bench_multipass(
         rhs += out.rhs_evaluations
         ev = scipy_peer.solve_events(table, spec)
         _log(f"c: scipy with events {ev.wall:.2f} s for one wheel ({table.x.size} table nodes)")
+        w_after, _, _ = _best_of(partial(simulate_passage, table, spec), repeats=3)
+        ours_int[-1] = min(w, w_after)  # before and after the peer (see bench_passage)
         peers.append(ev)
         agree.append(agreement(out, ev, by="indentation"))
         current = rail_pass(wheel, current, spec, tables).rail
