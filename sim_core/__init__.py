@@ -46,12 +46,28 @@ signatures, and a signature names its argument types. When a new version of the 
 or renames such a type (a ``NamedTuple`` the stepper once took), unpickling the old index
 raises ``AttributeError`` before numba compares its source stamp, and the first call fails
 instead of compiling (numba issue 6522; seen here when the stepper's ``State`` became
-``Slots``). ``_tolerate_stale_cache_index`` reads such an index as empty: the function
-compiles, and saving it writes a fresh index over the stale one.
+``Slots``). ``_tolerate_stale_cache_index`` gives the pinned numba an index reader that is
+its own but for that one unpickling, where such an error means a stale index: read as empty,
+the function compiles, and saving it writes a fresh index over the stale one.
+
+A fifth, for speed: LLVM targets Intel's server CPUs with a preference for 256-bit vectors,
+which numba inherits. The track stepper's loops over the modes are bound by their arithmetic
+on cache-line-aligned rows (``sim_core.track.lanes``), and with 512-bit vectors they run ~40 %
+faster on this project's Emerald Rapids (0.35 -> 0.20 µs a step's pass over 416 modes; the
+site case's first wheel 5-6 % faster, docs/benchmarks.md, "sixth round"). ``_wide_vectors``
+lifts the preference (numba's ``CPU_FEATURES``: the host's own features plus
+``-prefer-256-bit``) on the CPUs of ``WIDE_VECTOR_CPUS``, before numba builds its target;
+other CPUs are left as they are. ``NUMBA_CPU_FEATURES`` set by the user wins, so does
+``NUMBA_ENABLE_AVX=0``, and ``RAILTWIN_NUMBA_256=1`` keeps LLVM's default (for comparison).
+numba's cache keys its entries on the features, so the two builds never mix; a process that
+compiles numba code before it imports ``sim_core`` gets LLVM's default (and compiles its own
+cache entries). Sums over the modes then reduce in 16 lanes, not 8: results differ from a
+256-bit build by float32 rounding (~2e-6 of P), as they may between any two CPUs.
 """
 
 import os as _os
 import sys as _sys
+from typing import Any
 
 
 def _default_numba_cache() -> None:
@@ -105,6 +121,32 @@ _default_numba_cache()
 _preload_cython_blas()
 
 
+WIDE_VECTOR_CPUS = frozenset({"sapphirerapids", "emeraldrapids", "graniterapids"})
+"""LLVM's names of the CPUs whose 512-bit vectors ``_wide_vectors`` lets numba use: Intel's
+server cores since Sapphire Rapids, which run them without the deep clock drop of
+Skylake-SP and Cascade Lake (measured here on Emerald Rapids). Elsewhere LLVM's own choice
+stands."""
+
+
+def _wide_vectors() -> None:
+    if "NUMBA_CPU_FEATURES" in _os.environ or _os.environ.get("RAILTWIN_NUMBA_256", "0") != "0":
+        return
+    try:
+        import llvmlite.binding as ll
+        from numba.core import config
+    except ImportError:
+        return
+    if getattr(config, "CPU_FEATURES", None) is not None or not getattr(config, "ENABLE_AVX", True):
+        return
+    try:
+        name = ll.get_host_cpu_name()
+        features = ll.get_host_cpu_features()
+    except RuntimeError:  # llvmlite cannot read this host's features: leave numba's default
+        return
+    if name in WIDE_VECTOR_CPUS and features.get("avx512f"):
+        setattr(config, "CPU_FEATURES", features.flatten() + ",-prefer-256-bit")  # noqa: B010
+
+
 _LEAN_NUMBA = "0.68.1"
 """The numba whose ``Cache.load_overload`` ``_lean_cache_loads`` knows (pyproject pins it)."""
 
@@ -131,6 +173,7 @@ def _lean_cache_loads() -> None:
     caching.Cache._railtwin_lean = True  # type: ignore[attr-defined]
 
 
+_wide_vectors()
 _lean_cache_loads()
 
 
@@ -138,19 +181,36 @@ def _tolerate_stale_cache_index() -> None:
     try:
         import pickle
 
+        import numba
         from numba.core import caching
     except ImportError:
         return
     index = getattr(caching, "IndexDataCacheFile", None)
-    load = getattr(index, "_load_index", None)
-    if index is None or load is None or getattr(index, "_railtwin_tolerant", False):
+    if (
+        numba.__version__ != _LEAN_NUMBA
+        or index is None
+        or getattr(index, "_railtwin_tolerant", False)
+    ):
         return
 
-    def _load_index(self: object) -> object:
+    def _load_index(self: Any) -> dict[Any, Any]:
+        # numba 0.68.1's own, but for the one unpickling of the signatures
         try:
-            return load(self)
+            with open(self._index_path, "rb") as f:
+                version = pickle.load(f)
+                data = f.read()
+        except FileNotFoundError:
+            return {}
+        if version != self._version:
+            return {}
+        try:
+            stamp, overloads = pickle.loads(data)
         except (AttributeError, ImportError, pickle.UnpicklingError, EOFError):
             return {}  # written by code that named a type this code no longer has: stale
+        if stamp != self._source_stamp:
+            return {}
+        result: dict[Any, Any] = overloads
+        return result
 
     index._load_index = _load_index
     index._railtwin_tolerant = True

@@ -216,3 +216,54 @@ def test_a_cache_index_naming_a_type_the_code_no_longer_has_reads_as_stale(
         [sys.executable, "-c", plain, str(index)], capture_output=True, text=True
     )
     assert check.stdout.strip() == "ok", check.stderr
+
+
+_FEATURES_PROBE = textwrap.dedent(
+    """
+    import json
+    import llvmlite.binding as ll
+    import sim_core  # noqa: F401  (the vector width)
+    import numba
+    from numba.core import config
+    from numba.core.registry import cpu_target
+    print(json.dumps({
+        "wide": bool(ll.get_host_cpu_features().get("avx512f"))
+        and ll.get_host_cpu_name() in sim_core.WIDE_VECTOR_CPUS,
+        "config": config.CPU_FEATURES,
+        "target": cpu_target.target_context.codegen()._tm_features,
+    }))
+    """
+)
+
+
+def _features(env: dict[str, str]) -> dict[str, object]:
+    base = {
+        k: v for k, v in os.environ.items() if k not in ("NUMBA_CPU_FEATURES", "RAILTWIN_NUMBA_256")
+    }
+    out = subprocess.run(
+        [sys.executable, "-c", _FEATURES_PROBE],
+        env={**base, **env},
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    result: dict[str, object] = json.loads(out.stdout.strip().splitlines()[-1])
+    return result
+
+
+def test_wide_vectors_only_on_the_listed_cpus() -> None:
+    """numba's target lifts LLVM's 256-bit preference on the CPUs of ``WIDE_VECTOR_CPUS``,
+    before it is built; elsewhere, and when asked not to, numba's default stands; a user's own
+    ``NUMBA_CPU_FEATURES`` wins, and so does ``NUMBA_ENABLE_AVX=0``."""
+    got = _features({})
+    if got["wide"]:
+        assert isinstance(got["config"], str) and got["config"].endswith(",-prefer-256-bit")
+        assert "-prefer-256-bit" in str(got["target"])
+    else:
+        assert got["config"] is None
+        assert "prefer-256-bit" not in str(got["target"])
+    assert _features({"RAILTWIN_NUMBA_256": "1"})["config"] is None
+    assert _features({"NUMBA_ENABLE_AVX": "0"})["config"] is None
+    assert _features({"RAILTWIN_NUMBA_256": "0"})["config"] == got["config"]
+    own = _features({"NUMBA_CPU_FEATURES": "+sse2"})
+    assert own["config"] == "+sse2"
