@@ -276,7 +276,7 @@ def bench_passage(
             rtf=sim / best,
             **_passage_stats(out, sim, best),
         )
-        _log(f"{key}: railtwin again after its peers {again * 1e3:.2f} ms")
+        _log(f"{key}: railtwin again after its peers {again * 1e3:.2f} ms (best {best * 1e3:.2f})")
         res["scipy_events"] = _peer_entry(ev, sim, best)
         res["scipy_plain"] = _peer_entry(pl, sim, best)
         res["scipy_plain"]["peak_rel_diff"] = abs(out.peak_force - pl.peak_force) / out.peak_force
