@@ -189,8 +189,17 @@ def johnson_plastic_force(delta: float, f_y: float, d_y: float, theta_y: float) 
 def contact_force(
     delta: float, law: int, c: float, f_y: float, d_y: float, theta_y: float
 ) -> float:
-    """Loading-branch force of any law at indentation δ (MODEL.md §3)."""
-    return mode_force(delta, law != HERTZ and delta > d_y, law, c, f_y, d_y, theta_y)
+    """Loading-branch force of any law at indentation δ (MODEL.md §3).
+
+    With a yield law the Hertz branch is capped at F_Y: δ_Y = (F_Y/C)^(2/3) is itself rounded,
+    and C·δ_Y^1.5 can come out a few ulp above F_Y (5 ulp at Y = 300 MPa on the paper's wheel),
+    so the law would dip by them where it turns plastic; capped, it never decreases. (The
+    integrator's fixed-branch ``mode_force`` keeps Hertz beyond δ_Y by design.)"""
+    plastic = law != HERTZ and delta > d_y
+    f = mode_force(delta, plastic, law, c, f_y, d_y, theta_y)
+    if law != HERTZ and not plastic and f > f_y:
+        return f_y
+    return f
 
 
 @numba.njit(cache=True, inline="always")

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 from scipy.integrate import quad
 
@@ -185,6 +185,7 @@ laws = st.sampled_from(LAWS)
     a=st.floats(min_value=-2.0, max_value=20.0),
     b=st.floats(min_value=-2.0, max_value=20.0),
 )
+@example(law=cl.HERTZ_PLASTIC, y=3e8, a=1.0, b=2.0)  # found by hypothesis: δ_Y's last bits
 def test_force_monotone_non_decreasing(law: int, y: float, a: float, b: float) -> None:
     k = rs.paper_constants(E, NU, R, P, M, y, THETA)
     lo, hi = sorted((a * k.d_y, b * k.d_y))
@@ -210,3 +211,16 @@ def test_force_matches_independent_derivation(law: int, y: float, x: float) -> N
     delta = x * k.d_y
     expected = rs.loading_force(delta, LAW_NAMES[law], k)
     assert _force(delta, law, k) == pytest.approx(expected, rel=1e-13, abs=1e-300)
+
+
+@pytest.mark.parametrize("law", [cl.JOHNSON, cl.HERTZ_PLASTIC])
+@pytest.mark.parametrize("y", [3e8, 4.5e8, 6e8, 1.2e9])
+def test_the_law_does_not_dip_where_it_turns_plastic(law: int, y: float) -> None:
+    """At δ_Y itself the Hertz branch is capped at F_Y (C·δ_Y^1.5 rounds a few ulp above it at
+    Y = 300 MPa): the force at δ_Y is at most the force anywhere beyond (a property found by
+    hypothesis with a = 1, b = 2; it must not rest on the last bits of δ_Y)."""
+    k = rs.paper_constants(E, NU, R, P, M, y, THETA)
+    at = _force(k.d_y, law, k)
+    assert at <= k.f_y
+    for d in (np.nextafter(k.d_y, np.inf), 1.0000001 * k.d_y, 2.0 * k.d_y):
+        assert at <= _force(float(d), law, k)
