@@ -66,7 +66,7 @@ from sim_core.track.beam import (
 from sim_core.track.lanes import PAD_LAMBDA, padded_modes
 from sim_core.track.layout import ABSORBER_BAYS, ELEMENTS_PER_BAY, MARGIN_BAYS, TrackLayout, layout
 from sim_core.track.spec import Crib, Support, TrackError, TrackSpec
-from sim_core.track.stepper import MODE_DTYPE, Modes
+from sim_core.track.stepper import CRIB_GROUP, MODE_DTYPE, Modes
 
 CUTOFF = 12000.0
 """Highest undamped track frequency kept as a mode, Hz (convergence: docs/MODEL.md §8).
@@ -157,8 +157,8 @@ class ModalTrack:
             c(self.bubble),
             c(self.crib_lo),
             c(self.crib_hi),
-            s(rows.real.reshape(len(self.crib_ids), self.n_modes)),
-            s(rows.imag.reshape(len(self.crib_ids), self.n_modes)),
+            s(_crib_groups(rows.real.reshape(len(self.crib_ids), self.n_modes))),
+            s(_crib_groups(rows.imag.reshape(len(self.crib_ids), self.n_modes))),
         )
 
     def element_of(self, x: float) -> int:
@@ -222,6 +222,13 @@ def reduce_track(
     mt = _reduce(*args, elements_per_bay)
     store.touch(_store_inputs(*args, elements_per_bay))
     return mt
+
+
+def _crib_groups(a: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The cribs' rows ``a`` with zero rows appended to a multiple of ``stepper.CRIB_GROUP``
+    (the stepper adds the cribs' inertia four at a time)."""
+    pad = -a.shape[0] % CRIB_GROUP
+    return np.concatenate([a, np.zeros((pad, a.shape[1]))]) if pad else a
 
 
 def _store_inputs(

@@ -156,6 +156,7 @@ def simulate_on_track(
         padded_modes(zeta.real, st.MODE_DTYPE),
         padded_modes(zeta.imag, st.MODE_DTYPE),
         aligned_zeros((st.WORK_ROWS, padded_size(mt.n_modes)), st.MODE_DTYPE),
+        aligned_zeros((2 * st.RATE_BLOCK if cribs else 2, padded_size(mt.n_modes)), st.MODE_DTYPE),
         np.empty(4),
         float(y0),
         float(init.v_c),

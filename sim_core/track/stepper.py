@@ -60,6 +60,15 @@ six of ``coefficients`` and the merged e^{λτ}·τφ₂ + τ(φ₁ − φ₂)),
 pending τφ₂ (2), and four pairs of state (``Slots``: the modes at t and a trial's
 prediction, R at t and at a trial's end)."""
 
+RATE_BLOCK = 16
+"""Samples whose ζ̇ ``run`` keeps before it adds their cribs' inertia (rows of ``rates``: two a
+sample). A crib's row is then read once a block: read at every sample, the cribs' rows (27 kB
+on the site case's 8 cribs) pushed the step's own rows out of the first-level cache."""
+
+CRIB_GROUP = 4
+"""Cribs a pass over the modes adds the inertia of (``Modes.crib_r`` is padded with zero rows
+to a multiple of this)."""
+
 EV_LOSS, EV_CONTACT, EV_YIELD, EV_UNYIELD = 0, 1, 2, 3
 OK, TOO_MANY_STEPS, TOO_MANY_TRANSITIONS = 0, 1, 2
 MODE_DTYPE = np.float32
@@ -341,13 +350,20 @@ def _fill_row(
 
 @_kernel
 def _rail_at(
-    lam_r: NDArray[Any], lam_i: NDArray[Any], wk: NDArray[Any], sl: Slots, fa: float
+    lam_r: NDArray[Any],
+    lam_i: NDArray[Any],
+    wk: NDArray[Any],
+    sl: Slots,
+    fa: float,
+    out: NDArray[Any],
+    row: int,
 ) -> tuple[float, float]:
     """The rail's deflection and velocity at the state's x (R there: rows ``sl.ha``),
-    Σ Re(R·ζ) and Σ Re(R·ζ̇), with ζ = p + b·R·F; ζ̇ = λζ + R·F into the rows ``sl.p``."""
+    Σ Re(R·ζ) and Σ Re(R·ζ̇), with ζ = p + b·R·F; ζ̇ = λζ + R·F into the rows ``row``,
+    ``row + 1`` of ``out``."""
     ft = wk.dtype.type
     f = ft(fa)
-    zr, zi, dr, di = wk[sl.z], wk[sl.z + 1], wk[sl.p], wk[sl.p + 1]
+    zr, zi, dr, di = wk[sl.z], wk[sl.z + 1], out[row], out[row + 1]
     hr, hi, lr, li = wk[sl.ha], wk[sl.ha + 1], wk[sl.b], wk[sl.b + 1]
     wv = ft(0.0)
     vw = ft(0.0)
@@ -379,6 +395,42 @@ def _dot_re(
     for j in range(ar.size):
         s += ar[j] * br[j] - ai[j] * bi[j]
     return float(s)
+
+
+@_kernel
+def _crib_inertia(
+    md: Modes, rates: NDArray[Any], channels: NDArray[np.float64], first: int, count: int
+) -> None:
+    """Add each crib's rail inertia, Σ Re(A_i·ζ̇), to ``count`` samples of ``channels`` from
+    ``first`` on, their ζ̇ in the row pairs of ``rates``: four cribs a pass over the modes
+    (``Modes.crib_r`` has a multiple of four rows, zeros past the cribs)."""
+    nc = md.crib_lo.size
+    ar, ai = md.crib_r, md.crib_i
+    ft = rates.dtype.type
+    for b in range(count):
+        dr, di = rates[2 * b], rates[2 * b + 1]
+        for i in range(0, nc, CRIB_GROUP):
+            a0r, a1r, a2r, a3r = ar[i], ar[i + 1], ar[i + 2], ar[i + 3]
+            a0i, a1i, a2i, a3i = ai[i], ai[i + 1], ai[i + 2], ai[i + 3]
+            s0 = ft(0.0)
+            s1 = ft(0.0)
+            s2 = ft(0.0)
+            s3 = ft(0.0)
+            for j in range(dr.size):
+                d_r = dr[j]
+                d_i = di[j]
+                s0 += a0r[j] * d_r - a0i[j] * d_i
+                s1 += a1r[j] * d_r - a1i[j] * d_i
+                s2 += a2r[j] * d_r - a2i[j] * d_i
+                s3 += a3r[j] * d_r - a3i[j] * d_i
+            row = channels[first + b]
+            row[i] += float(s0)
+            if i + 1 < nc:
+                row[i + 1] += float(s1)
+            if i + 2 < nc:
+                row[i + 2] += float(s2)
+            if i + 3 < nc:
+                row[i + 3] += float(s3)
 
 
 @numba.njit(cache=True)
@@ -478,6 +530,7 @@ def run(
     zr: NDArray[np.floating[Any]],
     zi: NDArray[np.floating[Any]],
     work: NDArray[np.floating[Any]],
+    rates: NDArray[np.floating[Any]],
     shp: NDArray[np.float64],
     y0: float,
     v0: float,
@@ -527,7 +580,7 @@ def run(
     contact = fa > 0.0
     ck, _, ht = table_eval(tab.x, tab.y, tab.slope_left, tab.slope_right, tab.period, x, ht)
     _fill_row(he, nsh, md.row_r, md.row_i, work[sl.ha], work[sl.ha + 1])
-    w_a, _ = _rail_at(md.lam_r, md.lam_i, work, sl, fa)
+    w_a, _ = _rail_at(md.lam_r, md.lam_i, work, sl, fa, work, sl.p)
     delta_a = -y + ck + w_a - residual(he, xi, nsh, md) * fa
     plastic = plastic_law and contact and delta_a > wh.d_y
     n_tr = 0
@@ -536,6 +589,8 @@ def run(
     i_samp = 0
     ns = sample_t.size
     n_steps = 0
+    block = rates.shape[0] // 2  # samples whose ζ̇ wait for their cribs' inertia
+    first = 0
     f_prev2 = -1.0
     f_prev1 = -1.0
     peak = fa
@@ -712,9 +767,13 @@ def run(
             he = element_at(xs, md.ex, he)
             xi = shapes(xs, he, md, nsh)
             # the state at t (R there is the last step's end row): ζ = p + b·R·F, and the rail's
-            # deflection and velocity under the wheel, Σ Re(R·ζ) and Σ Re(R·(λζ + R·F))
-            wv, vw = _rail_at(md.lam_r, md.lam_i, work, sl, fa)
-            dr, di = work[sl.p], work[sl.p + 1]
+            # deflection and velocity under the wheel, Σ Re(R·ζ) and Σ Re(R·(λζ + R·F)); ζ̇ into
+            # the block of ``rates`` (with cribs) for their inertia, added a block at a time
+            slot = i_samp - first
+            if nc > 0:
+                wv, vw = _rail_at(md.lam_r, md.lam_i, work, sl, fa, rates, 2 * slot)
+            else:
+                wv, vw = _rail_at(md.lam_r, md.lam_i, work, sl, fa, work, sl.p)
             rr = residual(he, xi, nsh, md)
             ck, _, ht = table_eval(
                 tab.x, tab.y, tab.slope_left, tab.slope_right, tab.period, xs, ht
@@ -731,18 +790,23 @@ def run(
             row[C_CONTACT] = 1.0 if contact else 0.0
             row[C_VW] = vw
             for i in range(nc):
-                s = _dot_re(md.crib_r[i], md.crib_i[i], dr, di)
                 # the wheel's load between the gauges; half of it on a gauge (the step's midpoint:
                 # a sample that falls exactly on a gauge crossing is a tie either way)
+                s = 0.0
                 tie = 1e-9 * (1.0 + abs(xs))
                 lo = md.crib_lo[i]
                 hi = md.crib_hi[i]
                 if lo + tie < xs < hi - tie:
-                    s += fa
+                    s = fa
                 elif abs(xs - lo) <= tie or abs(xs - hi) <= tie:
-                    s += 0.5 * fa
+                    s = 0.5 * fa
                 channels[i_samp, i] = s
             i_samp += 1
+            if nc > 0 and slot == block - 1:
+                _crib_inertia(md, rates, channels, first, block)
+                first = i_samp
+    if nc > 0 and i_samp > first:
+        _crib_inertia(md, rates, channels, first, i_samp - first)
     extrema[E_PEAK_FORCE] = peak
     extrema[E_MIN_FORCE] = least
     extrema[E_PEAK_DELTA] = peak_d
