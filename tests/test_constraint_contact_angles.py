@@ -40,3 +40,22 @@ def test_bounds_are_the_running_extremes_of_the_contact_angle(n: int) -> None:
     assert np.allclose(lo, want_lo, rtol=0.0, atol=ulp)
     assert np.allclose(hi, want_hi, rtol=0.0, atol=ulp)
     assert np.all(np.diff(lo) >= 0) and np.all(np.diff(hi) >= 0)  # monotone: binary search
+
+
+def test_asin_series_matches_libm_on_both_sides_of_its_range() -> None:
+    import math
+
+    from sim_core.constraint.contact_zones import ASIN_SERIES, _asin
+
+    u = np.concatenate(
+        [
+            np.linspace(-ASIN_SERIES, ASIN_SERIES, 4001),
+            np.nextafter(ASIN_SERIES, [0.0, 1.0]),
+            -np.nextafter(ASIN_SERIES, [0.0, 1.0]),
+            np.linspace(-1.0, 1.0, 401),
+            [0.0, 5e-324, 1e-300],
+        ]
+    )
+    got = np.array([_asin(float(v)) for v in u])
+    want = np.array([math.asin(float(v)) for v in u])
+    assert np.all(np.abs(got - want) <= np.spacing(np.abs(want)))  # within one ulp

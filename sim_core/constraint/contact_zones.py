@@ -71,6 +71,41 @@ def _contact_angles(
     return out
 
 
+ASIN_SERIES = 0.1
+"""|u| up to which :func:`_asin` sums the series (a rough rail's contact point lies within
+|u| = |x_D - x|/R ~ 1e-3 of the wheel's centre line; a 1 mm step's corner ~0.07)."""
+
+
+@numba.njit(cache=True, inline="always")
+def _asin(u: float) -> float:
+    """asin u: its Taylor series through u¹⁵ for |u| ≤ ``ASIN_SERIES`` (the first term left
+    out is 1.4e-18 of u there), libm's beyond: ~5x faster than libm's call on a 6 m rail's
+    31 000 nodes, within one ulp of it (``tests/test_contact_zones.py``)."""
+    if abs(u) > ASIN_SERIES:
+        return math.asin(u)
+    u2 = u * u
+    return u * (
+        1.0
+        + u2
+        * (
+            1.0 / 6.0
+            + u2
+            * (
+                3.0 / 40.0
+                + u2
+                * (
+                    5.0 / 112.0
+                    + u2
+                    * (
+                        35.0 / 1152.0
+                        + u2 * (63.0 / 2816.0 + u2 * (231.0 / 13312.0 + u2 * (143.0 / 10240.0)))
+                    )
+                )
+            )
+        )
+    )
+
+
 @numba.njit(cache=True, _nrt=False)  # type: ignore[call-overload]  # _nrt: not in the stubs
 def _bounds(
     rn: NDArray[np.float64],
@@ -88,10 +123,11 @@ def _bounds(
     accumulations and copies). ``math.asin`` is libm's: numpy's arcsin, vectorised per CPU,
     differed from it by 1 ulp on ~5 % of arguments, far below ``FLAT_ZONE_MARGIN``."""
     n = rn.shape[0]
+    inv_r = 1.0 / R
     for i in range(n):
         xi = rn[i, X]
         x[i] = xi
-        th = math.asin(min(max((rn[i, XD] - xi) / R, -1.0), 1.0)) + xi / R
+        th = _asin(min(max((rn[i, XD] - xi) * inv_r, -1.0), 1.0)) + xi * inv_r
         if i < n - 1:
             lo[i] = th - margin  # interval i starts at node i
         if i > 0:
