@@ -80,3 +80,19 @@ def test_scenario_and_site_simulate_the_same_passage() -> None:
     n = min(len(from_site.force), len(from_runner.series.force))
     assert n > 10
     np.testing.assert_allclose(from_site.force[:n], from_runner.series.force[:n], rtol=1e-6)
+
+
+def test_sampled_rail_arrays_hold_the_schemas_floats_exactly() -> None:
+    rng = np.random.default_rng(4)
+    x = np.cumsum(rng.uniform(1e-4, 1e-3, 5000)).tolist()
+    y = (rng.normal(0.0, 1e-5, 5000) * 10.0 ** rng.integers(-300, 0, 5000)).tolist()
+    rail = physics_inputs.rail_profile(
+        Scenario.model_validate(
+            {
+                **json.loads((EXAMPLES / "sampled_rail.json").read_text()),
+                "rail": {"kind": "sampled", "x": x, "y": y},
+            }
+        ).rail
+    )
+    assert rail.x.dtype == np.float64 and rail.x.tolist() == x and rail.y.tolist() == y
+    assert physics_inputs.float_array([]).size == 0
