@@ -81,15 +81,17 @@ def layout(
     n_core = round((core1 - core0) / ls)
     sleepers = [core0 + (i - absorber_bays) * ls for i in range(n_core + 2 * absorber_bays + 1)]
     sleepers = [round(s, 12) for s in sleepers]
-    xs: list[float] = []
     coarse = max(1, elements_per_bay // 2)
-    for i in range(len(sleepers) - 1):
-        a, b = sleepers[i], sleepers[i + 1]
-        inside = absorber_bays <= i < absorber_bays + n_core
-        n = elements_per_bay if inside else coarse
-        xs.extend(a + (b - a) * np.arange(n) / n)
-    xs.append(sleepers[-1])
-    nodes = np.array(xs)
+    ends = np.array(sleepers)
+    bay = np.arange(ends.size - 1)
+    per = np.where(
+        (bay >= absorber_bays) & (bay < absorber_bays + n_core), elements_per_bay, coarse
+    )
+    # bay i's nodes a + (b - a)·k/n, k = 0 … n - 1, all bays at once (the same operations)
+    first = np.repeat(np.cumsum(per) - per, per)
+    k = np.arange(first.size) - first
+    a = np.repeat(ends[:-1], per)
+    nodes = np.append(a + np.repeat(np.diff(ends), per) * k / np.repeat(per, per), ends[-1])
     if gauges:
         g = np.asarray(gauges, dtype=np.float64)
         near = np.abs(nodes[:, None] - g[None, :]) < 1e-9
@@ -114,8 +116,7 @@ def _merge_close(
     tol: float,
 ) -> NDArray[np.float64]:
     """``nodes`` without the plain ones closer than ``tol`` to a gauge (``fixed`` ones stay)."""
-    keep = np.ones(nodes.size, dtype=bool)
-    for g in gauges:
-        keep &= ~((np.abs(nodes - g) < tol) & (np.abs(nodes - g) > 1e-9))
+    d = np.abs(nodes[:, None] - gauges[None, :])
+    keep = ~((d < tol) & (d > 1e-9)).any(axis=1)
     is_fixed = (np.abs(nodes[:, None] - fixed[None, :]) <= 1e-9).any(axis=1)
     return nodes[keep | is_fixed]
