@@ -47,6 +47,24 @@ def test_a_broken_entry_is_recomputed(tmp_path: Path, monkeypatch: pytest.Monkey
     assert not list(tmp_path.glob("*.tmp"))
 
 
+def test_checksum_sees_every_flipped_bit_and_a_moved_or_zeroed_block() -> None:
+    rng = np.random.default_rng(8)
+    data = bytearray(rng.integers(0, 256, 8 * store.CHECK_BLOCK * 3 + 5, dtype=np.uint8).tobytes())
+    ref = store.checksum(data)
+    # every bit of the first and the last 64 bytes (whole words, the tail, block edges)
+    for i in [*range(64), *range(len(data) - 64, len(data))]:
+        for bit in range(8):
+            data[i] ^= 1 << bit
+            assert store.checksum(data) != ref, (i, bit)
+            data[i] ^= 1 << bit
+    assert store.checksum(data) == ref
+    block = 8 * store.CHECK_BLOCK
+    moved = data[block : 2 * block] + data[:block] + data[2 * block :]
+    zeroed = bytes(block) + data[block:]
+    assert store.checksum(moved) != ref and store.checksum(zeroed) != ref
+    assert store.checksum(data[:-1]) != ref  # a shorter payload
+
+
 def test_off_writes_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("RAILTWIN_TRACK_CACHE", "off")
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
