@@ -295,3 +295,19 @@ def test_curvature_stiffness_is_refused_on_a_track() -> None:
     )
     with pytest.raises(TrackError, match=r"^curvature_stiffness"):
         simulate_on_track(scaled, spec, ROSE_TRACK)
+
+
+def test_one_point_shapes_are_the_array_forms_to_rounding() -> None:
+    from sim_core.track.beam import deflection_shapes, deflection_shapes_at
+
+    rng = np.random.default_rng(6)
+    for xi in [0.0, 1.0, 0.5, *rng.uniform(0.0, 1.0, 200)]:
+        length, phi = float(rng.uniform(0.02, 0.1)), float(rng.uniform(0.0, 0.6))
+        one = deflection_shapes_at(float(xi), length, phi)
+        many = deflection_shapes(float(xi), length, phi)
+        assert one.shape == (4,)
+        scale = np.array([1.0, length, 1.0, length])
+        assert np.all(np.abs(one - many) <= 2e-15 * scale)
+    # the four sum to the rigid translation: w = 1 everywhere for unit end deflections
+    n = deflection_shapes_at(0.3, 0.05, 0.2)
+    assert abs(n[0] + n[2] - 1.0) < 1e-15

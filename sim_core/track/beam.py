@@ -60,6 +60,24 @@ def deflection_shapes(
     )
 
 
+def deflection_shapes_at(xi: float, length: float, phi: float) -> NDArray[np.float64]:
+    """:func:`deflection_shapes` at one ξ in Python floats, to rounding (numpy's 0-d ξ³ differs
+    from ξ²·ξ in the last bit on ~5 % of ξ): a fifth of the time of the array form's four
+    0-d arrays, paid at every passage's start."""
+    c = 1.0 / (1.0 + phi)
+    L = length
+    x2 = xi * xi
+    x3 = x2 * xi
+    return np.array(
+        [
+            c * (1.0 - 3.0 * x2 + 2.0 * x3 + phi * (1.0 - xi)),
+            c * L * (xi - 2.0 * x2 + x3 + 0.5 * phi * (xi - x2)),
+            c * (3.0 * x2 - 2.0 * x3 + phi * xi),
+            c * L * (-x2 + x3 + 0.5 * phi * (x2 - xi)),
+        ]
+    )
+
+
 def rotation_shapes(
     xi: NDArray[np.float64] | float, length: float, phi: float
 ) -> NDArray[np.float64]:

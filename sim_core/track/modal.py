@@ -60,7 +60,7 @@ from sim_core.track.assembly import ABSORBER_RATE, TrackMatrices, assemble
 from sim_core.track.beam import (
     bubble_compliance,
     deflection_integral,
-    deflection_shapes,
+    deflection_shapes_at,
     shear_ratio,
 )
 from sim_core.track.lanes import PAD_LAMBDA, padded_modes
@@ -96,6 +96,10 @@ UNDAMPED_MAX_DOFS = 1500
 """Only models up to this many dofs keep their modes for reuse (the calibration's ~450, a
 few MB at most each; the twin's 30 m stretches, ~2 400 dofs, are reduced once and would
 hold ~20 MB each)."""
+
+
+_BUBBLE_GRID = np.linspace(0.0, 1.0, BUBBLE_POINTS)
+"""ξ of the bubble's samples."""
 
 
 class TrackTooLargeError(TrackError):
@@ -163,15 +167,15 @@ class ModalTrack:
 
     def element_of(self, x: float) -> int:
         """The kept element holding x (the first or last one beyond them)."""
-        return int(
-            np.clip(np.searchsorted(self.elem_x, x, side="right") - 1, 0, self.elem_x.size - 1)
-        )
+        i = int(np.searchsorted(self.elem_x, x, side="right")) - 1
+        return min(max(i, 0), self.elem_x.size - 1)
 
     def shapes_at(self, x: float) -> tuple[int, NDArray[np.float64]]:
         """(the element holding x, its four deflection shape functions at x)."""
         e = self.element_of(x)
-        xi = (x - self.elem_x[e]) / self.elem_len[e]
-        return e, deflection_shapes(xi, float(self.elem_len[e]), float(self.elem_phi[e]))
+        length = float(self.elem_len[e])
+        xi = (x - float(self.elem_x[e])) / length
+        return e, deflection_shapes_at(xi, length, float(self.elem_phi[e]))
 
     def rows_at(self, x: float) -> NDArray[np.complex128]:
         """R at x: every mode's deflection per unit ζ, and its load per unit downward force."""
@@ -182,7 +186,7 @@ class ModalTrack:
         """The element's own local static compliance at x (0 on a node), m/N."""
         e = self.element_of(x)
         xi = (x - self.elem_x[e]) / self.elem_len[e]
-        return float(np.interp(xi, np.linspace(0.0, 1.0, BUBBLE_POINTS), self.bubble[e]))
+        return float(np.interp(xi, _BUBBLE_GRID, self.bubble[e]))
 
     def residual_compliance(self, x: float) -> float:
         """r(x), m/N: the static compliance the kept modes leave out (truncation and bubble)."""
