@@ -99,3 +99,26 @@ def test_kink_jumps_are_read_at_each_kinks_node(rail: RailProfile) -> None:
         k0, j0 = _kink_jumps_by_search(t, a, b)
         k1, j1 = t.kink_jumps_between(a, b)
         assert np.array_equal(k0, k1) and np.array_equal(j0, j1)
+
+
+def test_kink_jumps_kept_by_the_tabulator_equal_the_node_walk() -> None:
+    """``table_from_parts`` keeps each kink's jump (``kink_jump``); a table without them walks
+    the nodes (``_kink_jumps``): the same positions and jumps, to the bit."""
+    import dataclasses
+
+    rail = RailProfile.sampled(
+        np.linspace(-0.1, 6.1, 12401), 2e-6 * np.sin(np.linspace(0, 600, 12401))
+    )
+    t = tabulate_constraint(WheelOutline.ideal_flat(0.46, 0.05), rail, 0.0, 6.0, phase=1.0)
+    assert t.kink_jump.shape == t.kinks.shape and t.kinks.size > 100
+    bare = dataclasses.replace(t, kink_jump=np.empty(0))
+    for a, b in ((-1e-12, 6.0 + t.resolution), (2.0, 2.8), (-5.0, 20.0), (0.5, 0.5), (3.0, 1.0)):
+        k0, j0 = bare.kink_jumps_between(a, b)
+        k1, j1 = t.kink_jumps_between(a, b)
+        assert np.array_equal(k0, k1) and np.array_equal(j0, j1)
+    # a kink exactly at an end: (x0, x1] as before
+    k = float(t.kinks[10])
+    for a, b in ((k, k + 0.01), (k - 0.01, k)):
+        assert np.array_equal(t.kink_jumps_between(a, b)[0], bare.kink_jumps_between(a, b)[0])
+    with pytest.raises(ValueError, match="kink_jump"):
+        dataclasses.replace(t, kink_jump=np.ones(3))

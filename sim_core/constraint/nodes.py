@@ -239,7 +239,7 @@ def table_from_parts(
         whole = np.array([[0, 0, rows.shape[0]]], dtype=np.int64)
         cols = _table_columns(rows, _NO_ROWS, whole, float(period))
         assert cols is not None  # sorted
-    x, y, sl, sr, xd, kinks = cols
+    x, y, sl, sr, xd, kinks, jumps = cols
     return ConstraintTable(
         x=x,
         y=y,
@@ -250,6 +250,7 @@ def table_from_parts(
         period=float(period),
         resolution=float(resolution),
         meta={"dx": float(dx), "nodes": float(x.size)},
+        kink_jump=jumps,
     )
 
 
@@ -264,10 +265,11 @@ def _table_columns(
         NDArray[np.float64],
         NDArray[np.float64],
         NDArray[np.float64],
+        NDArray[np.float64],
     ]
     | None
 ):
-    """(x, y, slope left, slope right, x_D, kinks) of the rows of ``parts`` (see
+    """(x, y, slope left, slope right, x_D, kinks, |slope jump| at each kink) of the rows of ``parts`` (see
     :func:`table_from_parts`), or None if a row's x lies below the one before: nodes
     closer than the position round-off (1e-13·|x|) merged (the left slope of the first, the
     right slope and contact point of the last, a kink if any was one), a slope jump at or
@@ -308,6 +310,7 @@ def _table_columns(
             prev = xi
     n = m
     kinks = np.empty(n)
+    jumps = np.empty(n)
     nk = 0
     for i in range(n):
         u = sl[i]
@@ -317,6 +320,7 @@ def _table_columns(
             sl[i] = sr[i] = 0.5 * (u + v)
         if kk[i] > 0 and not tiny and not (period > 0 and i == n - 1):
             kinks[nk] = x[i]
+            jumps[nk] = abs(v - u)
             nk += 1
     if period > 0:
         x[n - 1] = x[0] + period
@@ -328,5 +332,6 @@ def _table_columns(
             sr[:n].copy(),
             xd[:n].copy(),
             kinks[:nk].copy(),
+            jumps[:nk].copy(),
         )
-    return x, y, sl, sr, xd, kinks[:nk].copy()
+    return x, y, sl, sr, xd, kinks[:nk].copy(), jumps[:nk].copy()

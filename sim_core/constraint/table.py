@@ -89,6 +89,10 @@ class ConstraintTable:
     resolution: float
     stiffness_scale: NDArray[np.float64] = field(default_factory=lambda: np.empty(0))
     meta: dict[str, float] = field(default_factory=dict, compare=False)
+    kink_jump: NDArray[np.float64] = field(default_factory=lambda: np.empty(0), compare=False)
+    """Empty, or per kink (``kinks`` increasing) |slope_right - slope_left| at its node, as the
+    tabulator found it (``nodes.table_from_parts``): ``kink_jumps_between`` then slices it
+    instead of looking each kink's node up."""
 
     def __post_init__(self) -> None:
         n = self.x.size
@@ -109,6 +113,11 @@ class ConstraintTable:
             raise ValueError("constraint table: a periodic table must span exactly one period")
         if self.stiffness_scale.size not in (0, n) or not np.all(self.stiffness_scale > 0):
             raise ValueError("constraint table: stiffness_scale must be empty or positive per node")
+        if self.kink_jump.size and self.kink_jump.shape != self.kinks.shape:
+            raise ValueError(
+                f"constraint table: kink_jump has shape {self.kink_jump.shape}, expected "
+                f"{self.kinks.shape} (one per kink) or empty"
+            )
         if not self.resolution > 0:
             raise ValueError(
                 f"constraint table: resolution must be positive, got {self.resolution}"
@@ -187,6 +196,9 @@ class ConstraintTable:
         each jump read at the node nearest the kink (a periodic table's at its node in the
         one period kept). A non-periodic table's in one compiled pass over the nodes (a rough
         6 m rail's ~10 000 kinks cost 0.3 ms through ``np.searchsorted``)."""
+        if self.period == 0.0 and self.kink_jump.size and x1 > x0:
+            lo, hi = np.searchsorted(self.kinks, [x0, x1], side="right")
+            return self.kinks[lo:hi].copy(), self.kink_jump[lo:hi].copy()
         if self.period == 0.0 and self.kinks.size and x1 > x0:
             return _kink_jumps(self.x, self.slope_left, self.slope_right, self.kinks, x0, x1)
         kinks = self.kinks_between(x0, x1)
