@@ -64,3 +64,18 @@ def test_the_reduced_track_pads_with_inert_modes() -> None:
     assert np.all(md.lam_r[m:] == np.float32(lanes.PAD_LAMBDA))
     assert not md.lam_i[m:].any() and not md.row_r[:, m:].any() and not md.row_i[:, m:].any()
     np.testing.assert_array_equal(md.lam_r[:m], mt.lam.real.astype(MODE_DTYPE))
+
+
+def test_padded_parts_are_the_two_padded_modes_to_the_bit() -> None:
+    rng = np.random.default_rng(9)
+    for shape in [(401,), (3, 401), (2, 5, 17), (0, 33)]:
+        a = rng.normal(size=shape) + 1j * rng.normal(size=shape)
+        r, i = lanes.padded_parts(a, MODE_DTYPE, fill=lanes.PAD_LAMBDA)
+        np.testing.assert_array_equal(r, lanes.padded_modes(a.real, MODE_DTYPE, lanes.PAD_LAMBDA))
+        np.testing.assert_array_equal(i, lanes.padded_modes(a.imag, MODE_DTYPE))
+        if r.size:
+            assert r.ctypes.data % lanes.ALIGN == 0 and i.ctypes.data % lanes.ALIGN == 0
+    # a strided view (the real part of a complex array's transpose) reads the same
+    a = rng.normal(size=(40, 7)) + 1j * rng.normal(size=(40, 7))
+    r, i = lanes.padded_parts(a.T, MODE_DTYPE)
+    np.testing.assert_array_equal(r[:, :40], a.T.real.astype(MODE_DTYPE))

@@ -63,7 +63,7 @@ from sim_core.track.beam import (
     deflection_shapes_at,
     shear_ratio,
 )
-from sim_core.track.lanes import PAD_LAMBDA, padded_modes
+from sim_core.track.lanes import PAD_LAMBDA, padded_parts
 from sim_core.track.layout import ABSORBER_BAYS, ELEMENTS_PER_BAY, MARGIN_BAYS, TrackLayout, layout
 from sim_core.track.spec import Crib, Support, TrackError, TrackSpec
 from sim_core.track.stepper import CRIB_GROUP, MODE_DTYPE, Modes
@@ -145,15 +145,17 @@ class ModalTrack:
         def c(a: NDArray[np.float64]) -> NDArray[np.float64]:
             return np.ascontiguousarray(a, dtype=np.float64)
 
-        def s(a: NDArray[Any], fill: float = 0.0) -> NDArray[np.floating[Any]]:
-            return padded_modes(a, MODE_DTYPE, fill)
-
-        rows = self.crib_rows
+        lam_r, lam_i = padded_parts(self.lam, MODE_DTYPE, PAD_LAMBDA)
+        row_r, row_i = padded_parts(self.rows, MODE_DTYPE)
+        nc = len(self.crib_ids)
+        crib_r, crib_i = padded_parts(
+            _crib_groups(self.crib_rows.reshape(nc, self.n_modes)), MODE_DTYPE
+        )
         return Modes(
-            s(self.lam.real, PAD_LAMBDA),
-            s(self.lam.imag),
-            s(self.rows.real),
-            s(self.rows.imag),
+            lam_r,
+            lam_i,
+            row_r,
+            row_i,
             c(self.elem_x),
             c(self.elem_len),
             c(self.elem_phi),
@@ -161,8 +163,8 @@ class ModalTrack:
             c(self.bubble),
             c(self.crib_lo),
             c(self.crib_hi),
-            s(_crib_groups(rows.real.reshape(len(self.crib_ids), self.n_modes))),
-            s(_crib_groups(rows.imag.reshape(len(self.crib_ids), self.n_modes))),
+            crib_r,
+            crib_i,
         )
 
     def element_of(self, x: float) -> int:
@@ -228,7 +230,7 @@ def reduce_track(
     return mt
 
 
-def _crib_groups(a: NDArray[np.float64]) -> NDArray[np.float64]:
+def _crib_groups(a: NDArray[np.complex128]) -> NDArray[np.complex128]:
     """The cribs' rows ``a`` with zero rows appended to a multiple of ``stepper.CRIB_GROUP``
     (the stepper adds the cribs' inertia four at a time)."""
     pad = -a.shape[0] % CRIB_GROUP

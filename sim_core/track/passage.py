@@ -37,7 +37,7 @@ import numpy as np
 from sim_core.contact_laws import ContactLaw
 from sim_core.integrate.types import table_of
 from sim_core.track import stepper as st
-from sim_core.track.lanes import aligned_zeros, padded_modes, padded_size
+from sim_core.track.lanes import aligned_zeros, padded_parts, padded_size
 from sim_core.track.modal import ModalTrack, reduce_track
 from sim_core.track.spec import TrackError, TrackSpec, check_cribs
 
@@ -153,8 +153,7 @@ def simulate_on_track(
         float(h_max),
         stops,
         sample_t,
-        padded_modes(zeta.real, st.MODE_DTYPE),
-        padded_modes(zeta.imag, st.MODE_DTYPE),
+        *padded_parts(zeta, st.MODE_DTYPE),
         aligned_zeros((st.WORK_ROWS, padded_size(mt.n_modes)), st.MODE_DTYPE),
         aligned_zeros((2 * st.RATE_BLOCK if cribs else 2, padded_size(mt.n_modes)), st.MODE_DTYPE),
         np.empty(4),
