@@ -198,3 +198,21 @@ def test_touch_remembers_the_most_recent_entries_only(
     assert len(store._touched) == store.TOUCHED_KEPT
     assert keys[0] not in store._touched and keys[1] in store._touched
     assert store.touch(keys[0])  # forgotten: touched again
+
+
+def test_an_entry_keeps_its_layout_and_its_arrays_start_on_cache_lines(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A reduction read back has the layout the track makes (nodes, sleepers, absorbers), not
+    made again, and every array read lies on a cache line."""
+    monkeypatch.setenv("RAILTWIN_TRACK_CACHE", str(tmp_path))
+    a = _fresh(1.8)
+    b = _fresh(1.8)
+    assert a is not b
+    for f in ("x", "sleeper_nodes", "absorb"):
+        assert np.array_equal(getattr(a.layout, f), getattr(b.layout, f))
+    assert a.layout.sleepers == b.layout.sleepers
+    (entry,) = tmp_path.glob(f"*{store.SUFFIX}")
+    arrays = store.load(entry.stem)
+    assert arrays is not None
+    assert all(v.ctypes.data % store.ALIGN == 0 for v in arrays.values() if v.ndim and v.size)

@@ -273,6 +273,20 @@ def _reduce(
     elements_per_bay: int,
 ) -> ModalTrack:
     gauges = tuple(g for c in cribs for g in (c.x_a, c.x_b))
+    name = store.key(
+        _store_inputs(track, x0, x1, cribs, cutoff, margin_bays, absorber_bays, elements_per_bay)
+    )
+    kept = store.load(name, (*_ARRAYS, *_LAYOUT))
+    if kept is not None:
+        # the entry keeps its layout (its key names every input of it): not made again
+        lay = TrackLayout(
+            kept["x"],
+            tuple(kept["x"][kept["sleeper_nodes"]].tolist()),
+            kept["sleeper_nodes"],
+            kept["absorb"],
+        )
+        _check_dofs(track, lay)
+        return _from_arrays(track, lay, cutoff, cribs, kept)
     lay = layout(
         track,
         x0,
@@ -282,22 +296,14 @@ def _reduce(
         absorber_bays=absorber_bays,
         elements_per_bay=elements_per_bay,
     )
-    dofs = 2 * lay.n_nodes + (len(lay.sleepers) if track.kind == "discrete" else 0)
-    if dofs > MAX_DOFS:
-        raise TrackTooLargeError(
-            "foundation",
-            f"the track model would have {dofs} degrees of freedom, more than MAX_DOFS = "
-            f"{MAX_DOFS}: shorten the simulated stretch or lengthen the sleeper spacing",
-        )
-    name = store.key(
-        _store_inputs(track, x0, x1, cribs, cutoff, margin_bays, absorber_bays, elements_per_bay)
-    )
-    kept = store.load(name, (*_ARRAYS, "x"))
-    if kept is not None and kept["x"].shape == lay.x.shape and np.array_equal(kept["x"], lay.x):
-        return _from_arrays(track, lay, cutoff, cribs, kept)
+    _check_dofs(track, lay)
     same_km = (_stiffness_key(track), x0, x1, gauges, margin_bays, absorber_bays, elements_per_bay)
     mt = _modal(assemble(track, lay), cutoff, cribs, x0, x1, modes_key=same_km)
-    store.save(name, {f: getattr(mt, f) for f in _ARRAYS} | {"x": lay.x})
+    store.save(
+        name,
+        {f: getattr(mt, f) for f in _ARRAYS}
+        | {"x": lay.x, "sleeper_nodes": lay.sleeper_nodes, "absorb": lay.absorb},
+    )
     return mt
 
 
@@ -317,6 +323,21 @@ _ARRAYS = (
     "fe_compliance_blocks",
 )
 """The fields of a ``ModalTrack`` that are arrays (what the disk cache keeps)."""
+
+
+_LAYOUT = ("x", "sleeper_nodes", "absorb")
+"""The ``TrackLayout`` arrays an entry keeps beside the reduction (the sleepers are nodes)."""
+
+
+def _check_dofs(track: TrackSpec, lay: TrackLayout) -> None:
+    """Refuse a finite model of more than ``MAX_DOFS`` degrees of freedom (field ``foundation``)."""
+    dofs = 2 * lay.n_nodes + (len(lay.sleepers) if track.kind == "discrete" else 0)
+    if dofs > MAX_DOFS:
+        raise TrackTooLargeError(
+            "foundation",
+            f"the track model would have {dofs} degrees of freedom, more than MAX_DOFS = "
+            f"{MAX_DOFS}: shorten the simulated stretch or lengthen the sleeper spacing",
+        )
 
 
 def _from_arrays(
