@@ -32,6 +32,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
+import math
 import os
 import tempfile
 import time
@@ -270,7 +271,7 @@ def _parse(data: NDArray[np.uint8]) -> dict[str, np.ndarray] | None:
     out = {}
     for field, dtype, shape, offset in head["arrays"]:
         dt = np.dtype(dtype)
-        count = int(np.prod(shape, dtype=np.int64))
+        count = math.prod(shape)
         out[field] = np.frombuffer(data, dt, count, start + offset).reshape(shape)
     return out
 
