@@ -122,3 +122,28 @@ def test_kink_jumps_kept_by_the_tabulator_equal_the_node_walk() -> None:
         assert np.array_equal(t.kink_jumps_between(a, b)[0], bare.kink_jumps_between(a, b)[0])
     with pytest.raises(ValueError, match="kink_jump"):
         dataclasses.replace(t, kink_jump=np.ones(3))
+
+
+def test_round_rows_of_six_columns_make_the_same_table() -> None:
+    """Rows of ``ROUND_NCOL`` columns (a round wheel's on a polyline, kink flag at ``ROUND_K``)
+    give the table their ten-column form gives, beside ten-column rows, in order or sorted."""
+    from sim_core.constraint.nodes import ROUND_K, ROUND_NCOL
+
+    rng = np.random.default_rng(12)
+    full = _rows(np.sort(rng.uniform(0.0, 1.0, 300)), rng)
+    small = _rows(np.sort(rng.uniform(1.0, 1.2, 20)), rng)
+    six = np.zeros((full.shape[0], ROUND_NCOL))
+    six[:, :ROUND_K] = full[:, :ROUND_K]
+    six[:, ROUND_K] = full[:, K]
+    assert np.any(six[:, ROUND_K] > 0)
+    in_order = np.array([[0, 0, 300], [1, 0, 20]], dtype=np.int64)
+    want = table_from_parts(full, small, in_order, 0.0, 1e-3, 1e-3)
+    assert _same(table_from_parts(six, small, in_order, 0.0, 1e-3, 1e-3), want)
+    assert np.array_equal(
+        table_from_nodes(six, 0.0, 1e-3, 1e-3).kinks, table_from_nodes(full, 0.0, 1e-3, 1e-3).kinks
+    )
+    swapped = np.array([[0, 150, 300], [0, 0, 150]], dtype=np.int64)  # sorted on the way
+    assert _same(
+        table_from_parts(six, small, swapped, 0.0, 1e-3, 1e-3),
+        table_from_parts(full, small, swapped, 0.0, 1e-3, 1e-3),
+    )

@@ -3,8 +3,9 @@
 Every compiled tabulator of this package returns *node rows*: one row per node with
 the columns ``X`` (wheel position, m), ``V`` (y_C^k, m), ``SL``/``SR`` (slopes left and
 right), ``XD`` (contact point, m), ``PL``/``PR``/``GL``/``GR`` (the general search's
-contact angle ψ and dψ/dx on both sides) and ``K`` (1 at a kink). :func:`table_from_nodes`
-turns them into a :class:`~sim_core.constraint.table.ConstraintTable`.
+contact angle ψ and dψ/dx on both sides) and ``K`` (1 at a kink); a round wheel's rows on a
+polyline have the first five and the kink flag only (``ROUND_NCOL``, ``ROUND_K``).
+:func:`table_from_nodes` turns them into a :class:`~sim_core.constraint.table.ConstraintTable`.
 
 Worked example: two nodes 1 mm apart, 1 µm up with slope 1e-3 (a straight line) make a
 two-node table that is exact in between:
@@ -43,6 +44,16 @@ KINK_SLOPE = 1e-7
 X, V, SL, SR, XD, PL, PR, GL, GR, K = range(10)
 """Columns of a node row."""
 NCOL = 10
+ROUND_NCOL = 6
+"""Columns of a round wheel's node rows on a polyline (``round_polyline``): ``X`` to ``XD``,
+then the kink flag at ``ROUND_K``, all that a table takes from a row; the ψ-search's four
+are left out (a 6 m rail's 31 000 round rows: 1.5 MB instead of 2.5 MB, written once and
+read twice by every first wheel). ``table_from_parts`` takes rows of either width.
+
+(The columns keep their numbers: a compiled function of another module that reads them
+has them built in, and numba's cache does not see a change here.)"""
+ROUND_K = 5
+"""The kink flag's column in rows of ``ROUND_NCOL`` columns."""
 
 
 @numba.njit(cache=True)
@@ -234,7 +245,9 @@ def table_from_parts(
     if cols is None and not sort:
         raise ValueError("constraint table: node positions x must be increasing")
     if cols is None:
-        rows = np.concatenate([(a if src == 0 else b)[lo:hi] for src, lo, hi in parts.tolist()])
+        rows = np.concatenate(
+            [_full((a if src == 0 else b)[lo:hi]) for src, lo, hi in parts.tolist()]
+        )
         rows = rows[np.argsort(rows[:, X], kind="mergesort")]
         whole = np.array([[0, 0, rows.shape[0]]], dtype=np.int64)
         cols = _table_columns(rows, _NO_ROWS, whole, float(period))
@@ -252,6 +265,16 @@ def table_from_parts(
         meta={"dx": float(dx), "nodes": float(x.size)},
         kink_jump=jumps,
     )
+
+
+def _full(rows: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``rows`` in ``NCOL`` columns (rows of ``ROUND_NCOL`` widened, the kink flag moved)."""
+    if rows.shape[1] == NCOL:
+        return rows
+    out = np.zeros((rows.shape[0], NCOL))
+    out[:, :ROUND_K] = rows[:, :ROUND_K]
+    out[:, K] = rows[:, ROUND_K]
+    return out
 
 
 @numba.njit(cache=True)
@@ -279,6 +302,8 @@ def _table_columns(
     rows = 0
     for p in range(parts.shape[0]):
         rows += parts[p, 2] - parts[p, 1]
+    k_a = ROUND_K if a.shape[1] == ROUND_NCOL else K  # each source's kink column
+    k_b = ROUND_K if b.shape[1] == ROUND_NCOL else K
     x = np.empty(rows)
     y = np.empty(rows)
     sl = np.empty(rows)
@@ -289,6 +314,7 @@ def _table_columns(
     prev = 0.0
     for p in range(parts.shape[0]):
         src = a if parts[p, 0] == 0 else b
+        kc = k_a if parts[p, 0] == 0 else k_b
         for i in range(parts[p, 1], parts[p, 2]):
             xi = src[i, X]
             if m > 0:
@@ -297,7 +323,7 @@ def _table_columns(
                 if xi - prev <= 1e-13 * max(1.0, abs(xi)):
                     sr[m - 1] = src[i, SR]
                     xd[m - 1] = src[i, XD]
-                    kk[m - 1] = max(kk[m - 1], src[i, K])
+                    kk[m - 1] = max(kk[m - 1], src[i, kc])
                     prev = xi
                     continue
             x[m] = xi
@@ -305,7 +331,7 @@ def _table_columns(
             sl[m] = src[i, SL]
             sr[m] = src[i, SR]
             xd[m] = src[i, XD]
-            kk[m] = src[i, K]
+            kk[m] = src[i, kc]
             m += 1
             prev = xi
     n = m

@@ -40,10 +40,11 @@ from numpy.typing import NDArray
 
 from sim_core.constraint.nodes import (
     NCOL,
+    ROUND_K,
+    ROUND_NCOL,
     SL,
     SR,
     XD,
-    K,
     V,
     X,
     stretch,
@@ -381,16 +382,15 @@ def _row(
     xd: float,
     k: float,
 ) -> None:
-    """Row n of ``nodes`` (room known) set to a node (:func:`~sim_core.constraint.nodes.add_node`'s
-    columns), in place: the envelope's ~30 000 nodes of a 6 m rail cost 4x less than through
-    add_node's returned array."""
-    nodes[n] = 0.0
+    """Row n of ``nodes`` (room known; ``ROUND_NCOL`` columns) set to a node
+    (:func:`~sim_core.constraint.nodes.add_node`'s columns), in place: the envelope's ~30 000
+    nodes of a 6 m rail cost 4x less than through add_node's returned array."""
     nodes[n, X] = x
     nodes[n, V] = v
     nodes[n, SL] = sl
     nodes[n, SR] = sr
     nodes[n, XD] = xd
-    nodes[n, K] = k
+    nodes[n, ROUND_K] = k
 
 
 @numba.njit(cache=True)
@@ -421,7 +421,7 @@ def _envelope_nodes(
     sx = np.empty(cap)  # where each starts to win
     sk = np.empty(cap)  # 1.0 if its start is a kink
     ns = _stack(x0, x1, R, vx, vy, ss, so, sto, jlo, jhi, st, sx, sk)
-    nodes = np.empty((nint + 1 + 3 * ns + 1, NCOL))  # grid, and per segment <= 3
+    nodes = np.empty((nint + 1 + 3 * ns + 1, ROUND_NCOL))  # grid, and per segment <= 3
     nn = _emit(x0, x1, nint, R, vx, vy, ss, so, sto, st, sx, sk, ns, nodes)
     return nodes[:nn]
 
