@@ -80,11 +80,13 @@ the stepper's whole cost and is bound by its arithmetic: in single precision it 
 What it costs: a mode's state is rounded to 6e-8 of itself every step, and a slow mode whose
 change in one step, |λτ| of its distance from equilibrium, falls below that rounding stops
 short of its equilibrium by ~6e-8/|λτ| of its amplitude. The error therefore grows as the step
-shortens (measured against a double-precision run, force and channels, of P): 2-4e-6 at the
-usual 20 µs, 1-2e-5 at 2 µs (a plastic law's dent spacing at 45 m/s), 0.4-1e-4 at 0.5 µs,
-3-7e-4 at 0.1 µs, which no passage takes (the step is bounded below by the rail table's
-resolution and the dent spacing over the speed). ``tests/test_track_precision.py`` holds 20 and
-0.5 µs; the track's validation allows 2 % of P."""
+shortens (measured on the site case, Hertz, against a double-precision run, force and
+channels, of P): 2-4e-6 at the usual 20 µs, 1-2e-5 at 2 µs (a plastic law's dent spacing at
+45 m/s), 0.4-1e-4 at 0.5 µs, 3-7e-4 at 0.1 µs, which no passage takes (the step is bounded
+below by the rail table's resolution and the dent spacing over the speed). It depends on the
+case too: a plastic wheel leaving dents, at 3.3 µs steps, measured ~1e-4 of P (a reviewer's
+float64 build). ``tests/test_track_precision.py`` holds 20 and 0.5 µs; the track's validation
+allows 2 % of P."""
 
 EVENT_TOLERANCE = 1e-7
 """An event is located to this fraction of the longest step (2e-12 s at 20 µs). Finer is noise:
