@@ -96,3 +96,5 @@ def test_sampled_rail_arrays_hold_the_schemas_floats_exactly() -> None:
     )
     assert rail.x.dtype == np.float64 and rail.x.tolist() == x and rail.y.tolist() == y
     assert physics_inputs.float_array([]).size == 0
+    with pytest.raises(ValueError, match="expected numbers"):
+        physics_inputs.float_array([0.0, "x"])  # type: ignore[list-item]

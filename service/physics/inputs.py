@@ -55,7 +55,10 @@ def float_array(values: Sequence[float]) -> NDArray[np.float64]:
     >>> float_array([0.0, 1.5, -2.0]).tolist()
     [0.0, 1.5, -2.0]
     """
-    return np.frombuffer(struct.pack(f"{len(values)}d", *values), dtype=np.float64)
+    try:
+        return np.frombuffer(struct.pack(f"{len(values)}d", *values), dtype=np.float64)
+    except struct.error as exc:  # not reached through the schema, which checks the floats
+        raise ValueError(f"expected numbers: {exc}") from None
 
 
 def rail_profile(rail: object) -> RailProfile:

@@ -80,7 +80,7 @@ ASIN_SERIES = 0.1
 def _asin(u: float) -> float:
     """asin u: its Taylor series through u¹⁵ for |u| ≤ ``ASIN_SERIES`` (the first term left
     out is 1.4e-18 of u there), libm's beyond: ~5x faster than libm's call on a 6 m rail's
-    31 000 nodes, within one ulp of it (``tests/test_contact_zones.py``)."""
+    31 000 nodes, within one ulp of it (``tests/test_constraint_contact_angles.py``)."""
     if abs(u) > ASIN_SERIES:
         return math.asin(u)
     u2 = u * u
@@ -120,8 +120,10 @@ def _bounds(
     (monotone, so that each flat pass is found by binary search; they enclose every
     interval's own range: a zone may only grow where θ* dips, by < 1e-7 rad) into ``lo`` and
     ``hi`` (the numpy form cost 0.75 ms of a 6 m rail's 4 ms table in its reversed
-    accumulations and copies). ``math.asin`` is libm's: numpy's arcsin, vectorised per CPU,
-    differed from it by 1 ulp on ~5 % of arguments, far below ``FLAT_ZONE_MARGIN``."""
+    accumulations and copies). asin is :func:`_asin`: its series near the centre line, libm's
+    beyond, within one ulp of libm (numpy's arcsin, vectorised per CPU, differed from libm by
+    1 ulp on ~5 % of arguments); x/R is taken as x·(1/R), which moves ~6 % of the bounds by an
+    ulp. Both far below ``FLAT_ZONE_MARGIN``."""
     n = rn.shape[0]
     inv_r = 1.0 / R
     for i in range(n):

@@ -92,7 +92,8 @@ class ConstraintTable:
     kink_jump: NDArray[np.float64] = field(default_factory=lambda: np.empty(0), compare=False)
     """Empty, or per kink (``kinks`` increasing) |slope_right - slope_left| at its node, as the
     tabulator found it (``nodes.table_from_parts``): ``kink_jumps_between`` then slices it
-    instead of looking each kink's node up."""
+    instead of looking each kink's node up. A ``dataclasses.replace`` that changes the slopes
+    or the kinks must pass ``kink_jump=np.empty(0)`` (it is not checked against them)."""
 
     def __post_init__(self) -> None:
         n = self.x.size
@@ -194,8 +195,9 @@ class ConstraintTable:
     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(positions, |slope jump|) of the kinks in (x0, x1], as ``kinks_between`` lists them;
         each jump read at the node nearest the kink (a periodic table's at its node in the
-        one period kept). A non-periodic table's in one compiled pass over the nodes (a rough
-        6 m rail's ~10 000 kinks cost 0.3 ms through ``np.searchsorted``)."""
+        one period kept). A non-periodic table's are sliced from ``kink_jump`` when the
+        tabulator kept them, else found in one compiled pass over the nodes (a rough 6 m
+        rail's ~10 000 kinks cost 0.3 ms through ``np.searchsorted``)."""
         if self.period == 0.0 and self.kink_jump.size and x1 > x0:
             lo, hi = np.searchsorted(self.kinks, [x0, x1], side="right")
             return self.kinks[lo:hi].copy(), self.kink_jump[lo:hi].copy()

@@ -277,16 +277,11 @@ def _reduce(
         _store_inputs(track, x0, x1, cribs, cutoff, margin_bays, absorber_bays, elements_per_bay)
     )
     kept = store.load(name, (*_ARRAYS, *_LAYOUT))
-    if kept is not None:
+    restored = _restored_layout(kept) if kept is not None else None
+    if kept is not None and restored is not None:
         # the entry keeps its layout (its key names every input of it): not made again
-        lay = TrackLayout(
-            kept["x"],
-            tuple(kept["x"][kept["sleeper_nodes"]].tolist()),
-            kept["sleeper_nodes"],
-            kept["absorb"],
-        )
-        _check_dofs(track, lay)
-        return _from_arrays(track, lay, cutoff, cribs, kept)
+        _check_dofs(track, restored)
+        return _from_arrays(track, restored, cutoff, cribs, kept)
     lay = layout(
         track,
         x0,
@@ -302,7 +297,12 @@ def _reduce(
     store.save(
         name,
         {f: getattr(mt, f) for f in _ARRAYS}
-        | {"x": lay.x, "sleeper_nodes": lay.sleeper_nodes, "absorb": lay.absorb},
+        | {
+            "x": lay.x,
+            "sleepers": np.asarray(lay.sleepers, dtype=np.float64),
+            "sleeper_nodes": lay.sleeper_nodes,
+            "absorb": lay.absorb,
+        },
     )
     return mt
 
@@ -325,8 +325,25 @@ _ARRAYS = (
 """The fields of a ``ModalTrack`` that are arrays (what the disk cache keeps)."""
 
 
-_LAYOUT = ("x", "sleeper_nodes", "absorb")
-"""The ``TrackLayout`` arrays an entry keeps beside the reduction (the sleepers are nodes)."""
+_LAYOUT = ("x", "sleepers", "sleeper_nodes", "absorb")
+"""The ``TrackLayout`` arrays an entry keeps beside the reduction."""
+
+
+def _restored_layout(kept: dict[str, NDArray[Any]]) -> TrackLayout | None:
+    """The entry's ``TrackLayout``, or None if its arrays do not fit together (a damaged entry
+    whose CRC held: the reduction is then made again)."""
+    x, sleepers, nodes, absorb = (kept[f] for f in _LAYOUT)
+    n = x.size
+    if (
+        x.ndim != 1
+        or n < 2
+        or absorb.shape != (n - 1,)
+        or nodes.shape != sleepers.shape
+        or nodes.dtype.kind != "i"
+        or not np.all((nodes >= 0) & (nodes < n))
+    ):
+        return None
+    return TrackLayout(x, tuple(sleepers.tolist()), nodes, absorb)
 
 
 def _check_dofs(track: TrackSpec, lay: TrackLayout) -> None:

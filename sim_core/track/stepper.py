@@ -67,7 +67,8 @@ on the site case's 8 cribs) pushed the step's own rows out of the first-level ca
 
 CRIB_GROUP = 4
 """Cribs a pass over the modes adds the inertia of (``Modes.crib_r`` is padded with zero rows
-to a multiple of this)."""
+to a multiple of this). ``_crib_inertia``'s loop is written out for four: change both
+together."""
 
 EV_LOSS, EV_CONTACT, EV_YIELD, EV_UNYIELD = 0, 1, 2, 3
 OK, TOO_MANY_STEPS, TOO_MANY_TRANSITIONS = 0, 1, 2
@@ -290,7 +291,7 @@ def coefficients(md: Modes, tau: float, co: NDArray[np.float64]) -> None:
     In real arithmetic: e^{λτ} from e^{Re λτ}, cos and sin of Im λτ; φ₁ = (e^z − 1)/z and
     φ₂ = (φ₁ − 1)/z as products with conj(z)/|z|². When every mode's λτ lies within
     ``EXP_RANGE`` and ``TRIG_RANGE`` (a 12 kHz track at 20 µs steps: |Re λτ| ≤ 0.05,
-    |Im λτ| ≤ 1.51), the three come from Taylor polynomials and the loop vectorises: 18 → ~3 µs
+    |Im λτ| ≤ 1.51), the three come from Taylor polynomials and the loop vectorises: 18 → ~7 µs
     for the site case's 416 modes, which it calls ~50 times a passage (its events and
     stops); otherwise from libm, mode by mode."""
     merged = co.shape[0] >= CO_ROWS
@@ -641,7 +642,10 @@ def run(
 ) -> tuple[int, int, int]:
     """Advance from t0 through every sample time; fill the outputs; return (transitions, dents)
     written and a status (OK; TOO_MANY_STEPS past ``max_steps``; TOO_MANY_TRANSITIONS when the
-    transition rows are full).
+    transition rows are full; the outputs are then incomplete, the last samples' crib inertia
+    included). ``rates`` needs two rows a sample of a block (``RATE_BLOCK``) when the model has
+    cribs (at least two), ``work`` ``WORK_ROWS``; neither is checked here (compiled without
+    bounds checks): ``sim_core.track.passage`` sizes them.
 
     Each step first tries its whole length; if the contact is lost or regained, or δ enters or
     leaves the plastic range, on the way, the event's instant is located on the step length
