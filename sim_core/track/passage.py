@@ -155,7 +155,10 @@ def simulate_on_track(
         sample_t,
         *padded_parts(zeta, st.MODE_DTYPE),
         aligned_zeros((st.WORK_ROWS, padded_size(mt.n_modes)), st.MODE_DTYPE),
-        aligned_zeros((2 * st.RATE_BLOCK if cribs else 2, padded_size(mt.n_modes)), st.MODE_DTYPE),
+        # ζ̇ of a block of samples, for the model's cribs' inertia (run counts them the same way)
+        aligned_zeros(
+            (2 * st.RATE_BLOCK if mt.crib_ids else 2, padded_size(mt.n_modes)), st.MODE_DTYPE
+        ),
         np.empty(4),
         float(y0),
         float(init.v_c),

@@ -481,20 +481,6 @@ def _rail_at(
 
 
 @_kernel
-def _dot_re(
-    ar: NDArray[np.float64],
-    ai: NDArray[np.float64],
-    br: NDArray[np.float64],
-    bi: NDArray[np.float64],
-) -> float:
-    """Σ Re(a·b)."""
-    s = ar.dtype.type(0.0)
-    for j in range(ar.size):
-        s += ar[j] * br[j] - ai[j] * bi[j]
-    return float(s)
-
-
-@_kernel
 def _crib_inertia(
     md: Modes, rates: NDArray[Any], channels: NDArray[np.float64], first: int, count: int
 ) -> None:
