@@ -41,18 +41,27 @@ def padded_size(m: int) -> int:
     return -(-m // LANES) * LANES
 
 
-def aligned_zeros(shape: int | tuple[int, ...], dtype: DTypeLike) -> NDArray[Any]:
-    """Zeros of ``shape`` whose first element lies on an ``ALIGN``-byte boundary."""
+def aligned_empty(shape: int | tuple[int, ...], dtype: DTypeLike) -> NDArray[Any]:
+    """An uninitialised array of ``shape`` whose first element lies on an ``ALIGN``-byte
+    boundary (what ``aligned_zeros`` zeroes; the track cache reads its files into one)."""
     dt = np.dtype(dtype)
     n = int(np.prod(shape))
-    buf = np.zeros(n * dt.itemsize + ALIGN, dtype=np.uint8)
+    buf = np.empty(n * dt.itemsize + ALIGN, dtype=np.uint8)
     off = (-buf.ctypes.data) % ALIGN
     return buf[off : off + n * dt.itemsize].view(dt).reshape(shape)
 
 
+def aligned_zeros(shape: int | tuple[int, ...], dtype: DTypeLike) -> NDArray[Any]:
+    """Zeros of ``shape`` whose first element lies on an ``ALIGN``-byte boundary."""
+    out = aligned_empty(shape, dtype)
+    out.fill(0)
+    return out
+
+
 def padded_modes(a: NDArray[Any], dtype: DTypeLike, fill: float = 0.0) -> NDArray[Any]:
     """``a`` (modes along its last axis) in ``dtype``, its last axis padded with ``fill`` to
-    ``padded_size`` and every row starting on an ``ALIGN``-byte boundary."""
+    ``padded_size`` and every row starting on an ``ALIGN``-byte boundary: the numpy form of one
+    real array, which the tests hold ``padded_parts`` (the stepper's arrays) to."""
     m = a.shape[-1]
     out = aligned_zeros((*a.shape[:-1], padded_size(m)), dtype)
     out[..., :m] = a

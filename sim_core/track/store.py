@@ -45,6 +45,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from sim_core.track.lanes import aligned_empty
+
 FORMAT = "railtwin-track-6"
 """Bumped whenever what a reduction holds or how it is computed changes."""
 
@@ -69,6 +71,9 @@ KEY_LENGTH = 40
 
 MAGIC = b"RTTRACK1"
 ALIGN = 64
+"""Bytes: the payload and every array in it start at a multiple of this in the file (part of
+the format); read into a buffer aligned as ``lanes.ALIGN`` (the same cache line), the arrays
+start on cache lines in memory too."""
 
 
 def key(inputs: Any) -> str:
@@ -221,9 +226,7 @@ def _read(path: Path) -> NDArray[np.uint8] | None:
     case's 2.5 MB); None if the file changed size while read."""
     with path.open("rb") as f:
         size = os.fstat(f.fileno()).st_size
-        raw = np.empty(size + ALIGN, dtype=np.uint8)
-        off = (-raw.ctypes.data) % ALIGN
-        data = raw[off : off + size]
+        data = aligned_empty(size, np.uint8)
         if f.readinto(data.data) != size:
             return None
     return data
