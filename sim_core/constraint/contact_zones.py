@@ -84,26 +84,15 @@ def _asin(u: float) -> float:
     if abs(u) > ASIN_SERIES:
         return math.asin(u)
     u2 = u * u
-    return u * (
-        1.0
-        + u2
-        * (
-            1.0 / 6.0
-            + u2
-            * (
-                3.0 / 40.0
-                + u2
-                * (
-                    5.0 / 112.0
-                    + u2
-                    * (
-                        35.0 / 1152.0
-                        + u2 * (63.0 / 2816.0 + u2 * (231.0 / 13312.0 + u2 * (143.0 / 10240.0)))
-                    )
-                )
-            )
-        )
-    )
+    # Horner from the u¹⁵ term down: the coefficients (2k)!/(4^k (k!)² (2k + 1))
+    p = 143.0 / 10240.0
+    p = 231.0 / 13312.0 + u2 * p
+    p = 63.0 / 2816.0 + u2 * p
+    p = 35.0 / 1152.0 + u2 * p
+    p = 5.0 / 112.0 + u2 * p
+    p = 3.0 / 40.0 + u2 * p
+    p = 1.0 / 6.0 + u2 * p
+    return u * (1.0 + u2 * p)
 
 
 @numba.njit(cache=True, _nrt=False)  # type: ignore[call-overload]  # _nrt: not in the stubs

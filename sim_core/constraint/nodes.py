@@ -292,8 +292,8 @@ def _table_columns(
     ]
     | None
 ):
-    """(x, y, slope left, slope right, x_D, kinks, |slope jump| at each kink) of the rows of ``parts`` (see
-    :func:`table_from_parts`), or None if a row's x lies below the one before: nodes
+    """(x, y, slope left, slope right, x_D, kinks, |slope jump| at each kink) of the rows of
+    ``parts`` (see :func:`table_from_parts`), or None if a row's x lies below the one before: nodes
     closer than the position round-off (1e-13·|x|) merged (the left slope of the first, the
     right slope and contact point of the last, a kink if any was one), a slope jump at or
     below KINK_SLOPE made smooth (the mean slope on both sides: round-off, not a kink), a
